@@ -1,0 +1,40 @@
+"""The `clothfold` command: one sub-command per module in this package.
+
+Each module `clothfold_ros/cli/<name>.py` defines `register(subparsers)` which adds its
+sub-parser and sets `func` (called with the parsed args; returns an exit code).
+Modules are discovered, so adding a command never touches this file.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="clothfold",
+        description="Shirt folding with ROS 2: geometry, simulation, pipeline, bags, lookup tables.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        if hasattr(module, "register"):
+            module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    return int(args.func(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,37 @@
+"""ament_python package clothfold_ros: `ros2 run clothfold_ros <node>` after colcon build."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "clothfold_ros"
+NODES = [
+    "keypoint_node",
+    "fold_planner_node",
+    "trajectory_node",
+    "cloth_sim_node",
+    "kinematic_robot_node",
+    "recorder_node",
+]
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/launch", glob("launch/*.py")),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.csv")),
+    ],
+    package_data={PACKAGE: ["py.typed"]},
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="clothfold maintainers",
+    maintainer_email="maintainers@clothfold.dev",
+    description="Two-parameter Bezier shirt folding on ROS 2 with an IPC cloth simulator.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [f"{n} = {PACKAGE}.nodes.{n}:main" for n in NODES]
+        + [f"clothfold = {PACKAGE}.cli:main"],
+    },
+)
