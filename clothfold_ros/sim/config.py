@@ -1,0 +1,34 @@
+"""Solver settings of the IPC cloth simulator (SPEC section 3)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Time stepping, Newton and contact settings. SI units.
+
+    The contact offset xi and the barrier activation distance dhat default to the cloth
+    thickness (None = use the material's thickness).
+    """
+
+    dt: float = 0.04  # s, implicit Euler time step
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)  # m/s^2, table frame
+    newton_tol: float = 1e-3  # m/s: stop when RMS(|dx|)/dt <= tol ...
+    newton_window: int = 1  # ... over this many last iterations
+    max_newton_iterations: int = 80
+    max_line_search_halvings: int = 30
+    xi: float | None = None  # m, minimum mid-surface separation (offset)
+    dhat: float | None = None  # m, barrier activation distance beyond xi
+    eps_v: float = 1e-3  # m/s, smoothed static friction velocity
+    table_margin: float = 0.05  # m the table extends beyond the cloth's rest footprint
+    check_intersections: bool = True  # assert intersection-free after every step
+    threads: int = 1  # ipctk threads (1 keeps results bit-for-bit deterministic)
+
+    def __post_init__(self) -> None:
+        if not self.dt > 0:
+            raise ValueError(f"dt must be > 0 s, got {self.dt}")
+        if not self.newton_tol > 0:
+            raise ValueError(f"newton_tol must be > 0 m/s, got {self.newton_tol}")
+        if self.max_newton_iterations < 1 or self.newton_window < 1:
+            raise ValueError("max_newton_iterations and newton_window must be >= 1")

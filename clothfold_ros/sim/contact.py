@@ -1,0 +1,127 @@
+"""IPC contact: log barrier, lagged smoothed Coulomb friction and CCD, via ipctk.
+
+Self-contact of the cloth and contact with the table (the plane z = 0, normal +z).
+Mid-surfaces keep at least `xi` apart (ipctk's dmin) and the barrier acts within `dhat`
+beyond that. Energies follow the incremental potential scaled like 1/2 |x - x_hat|_M^2,
+so the barrier is kappa * B(x) and friction D(u) is built from that barrier's forces.
+"""
+from __future__ import annotations
+
+import ipctk
+import numpy as np
+import scipy.sparse as sp
+
+PSD = ipctk.PSDProjectionMethod.CLAMP
+
+
+class ContactModel:
+    """Collision mesh, table plane and contact potentials for one cloth."""
+
+    def __init__(
+        self,
+        rest: np.ndarray,
+        triangles: np.ndarray,
+        xi: float,
+        dhat: float,
+        friction: float,
+        eps_v: float,
+        dt: float,
+    ) -> None:
+        tri = np.asarray(triangles, dtype=np.int32)
+        edges = ipctk.edges(tri)
+        self.mesh = ipctk.CollisionMesh(np.asfortranarray(rest, dtype=float), edges, tri)
+        self.mesh.planes = [ipctk.Hyperplane(np.array([0.0, 0.0, 1.0]), np.zeros(3))]
+        self.xi = float(xi)
+        self.dhat = float(dhat)
+        self.mu = float(friction)
+        self.dt = float(dt)
+        self.friction = ipctk.FrictionPotential(eps_v * dt)  # acts on displacements
+        self.kappa = 0.0
+        self.kappa_max = 0.0
+        self.barrier = ipctk.BarrierPotential(self.dhat, 1.0)
+        self.bbox_diagonal = float(ipctk.world_bbox_diagonal_length(np.asfortranarray(rest)))
+        self.collisions = ipctk.NormalCollisions()
+        self.tangential = ipctk.TangentialCollisions()
+
+    # -- collision sets --------------------------------------------------------------
+    def build(self, x: np.ndarray) -> ipctk.NormalCollisions:
+        """Active barrier collisions at positions x (N, 3)."""
+        xf = np.asfortranarray(x)
+        cand = ipctk.Candidates()
+        cand.build(self.mesh, xf, self.dhat + self.xi)
+        col = ipctk.NormalCollisions()
+        col.build(cand, self.mesh, xf, self.dhat, self.xi)
+        return col
+
+    def set_kappa(self, kappa: float) -> None:
+        self.kappa = float(kappa)
+        self.barrier = ipctk.BarrierPotential(self.dhat, self.kappa)
+
+    def init_kappa(self, x: np.ndarray, grad_energy: np.ndarray, avg_mass: float) -> None:
+        """Choose the barrier stiffness the IPC way (balance barrier and energy gradients)."""
+        col = self.build(x)
+        unit = ipctk.BarrierPotential(self.dhat, 1.0)
+        grad_b = unit.gradient(col, self.mesh, np.asfortranarray(x)) if len(col) else np.zeros_like(grad_energy)
+        kappa, kmax = ipctk.initial_barrier_stiffness(
+            self.bbox_diagonal, unit.barrier, self.dhat, avg_mass, grad_energy, grad_b, dmin=self.xi
+        )
+        self.kappa_max = max(self.kappa_max, kmax)
+        self.set_kappa(max(self.kappa, kappa))
+
+    def update_kappa(self, prev_min_dist: float, min_dist: float) -> None:
+        k = ipctk.update_barrier_stiffness(
+            prev_min_dist, min_dist, self.kappa_max, self.kappa, self.bbox_diagonal, dmin=self.xi
+        )
+        if k != self.kappa:
+            self.set_kappa(k)
+
+    def lag_friction(self, x: np.ndarray) -> None:
+        """Fix friction normal forces and tangent bases at x (start of the step)."""
+        xf = np.asfortranarray(x)
+        col = self.build(x)
+        self.tangential = ipctk.TangentialCollisions()
+        if len(col) and self.mu > 0:
+            self.tangential.build(self.mesh, xf, col, self.barrier, self.mu)
+
+    # -- potentials ---------------------------------------------------------------------
+    def energy(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> float:
+        e = self.barrier(col, self.mesh, np.asfortranarray(x)) if len(col) else 0.0
+        if len(self.tangential):
+            e += self.friction(self.tangential, self.mesh, np.asfortranarray(u))
+        return float(e)
+
+    def gradient(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        g = np.zeros(x.size)
+        if len(col):
+            g += self.barrier.gradient(col, self.mesh, np.asfortranarray(x))
+        if len(self.tangential):
+            g += self.friction.gradient(self.tangential, self.mesh, np.asfortranarray(u))
+        return g
+
+    def hessian(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> sp.spmatrix | None:
+        h = None
+        if len(col):
+            h = self.barrier.hessian(col, self.mesh, np.asfortranarray(x), PSD)
+        if len(self.tangential):
+            hf = self.friction.hessian(self.tangential, self.mesh, np.asfortranarray(u), PSD)
+            h = hf if h is None else h + hf
+        return h
+
+    # -- geometry queries -------------------------------------------------------------------
+    def min_distance(self, col: ipctk.NormalCollisions, x: np.ndarray) -> float:
+        """Smallest distance (m) among active collisions; inf when none."""
+        if not len(col):
+            return np.inf
+        return float(np.sqrt(col.compute_minimum_distance(self.mesh, np.asfortranarray(x))))
+
+    def max_step(self, x0: np.ndarray, x1: np.ndarray) -> float:
+        """Largest collision-free fraction of the linear move x0 -> x1 (keeps xi apart)."""
+        return float(
+            ipctk.compute_collision_free_stepsize(
+                self.mesh, np.asfortranarray(x0), np.asfortranarray(x1), min_distance=self.xi
+            )
+        )
+
+    def intersects(self, x: np.ndarray) -> bool:
+        """True if the cloth intersects itself or lies below the table top."""
+        return bool(ipctk.has_intersections(self.mesh, np.asfortranarray(x))) or bool(np.any(x[:, 2] < 0.0))

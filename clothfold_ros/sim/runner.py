@@ -1,0 +1,67 @@
+"""Headless fold runner: one (height ratio, tilt) trajectory on the IPC simulator, no ROS."""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from ..folding import FoldSpec
+from ..garment import Garment
+from ..loss import fold_target
+from ..materials import Material
+from ..trajectory import FoldTrajectory
+from .config import SimConfig
+from .episode import FoldEpisode, FoldOutcome
+from .simulator import ClothSimulator, SimulationFailure, StepStats
+
+
+def flat_start(garment: Garment, material: Material) -> np.ndarray:
+    """The garment's vertices lying flat at z = 2 t (SPEC section 1)."""
+    x = np.array(garment.vertices, dtype=float)
+    x[:, 2] = 2.0 * material.thickness
+    return x
+
+
+def run_fold(
+    garment: Garment,
+    spec: FoldSpec,
+    material: Material,
+    friction: float,
+    height_ratio: float,
+    tilt_deg: float,
+    duration: float = 4.0,
+    dt: float = 0.04,
+    settle_time: float = 0.2,
+    vertices: np.ndarray | None = None,
+    target_base: np.ndarray | None = None,
+    config: SimConfig | None = None,
+    progress: Callable[[int, int, StepStats], None] | None = None,
+) -> FoldOutcome:
+    """Simulate one fold and return its outcome (never raises for a failed simulation).
+
+    vertices: start state (default: flat at z = 2 t); target_base: the previous stage's
+    target (default: the start state), so targets compose along a sequence.
+    """
+    cfg = config or SimConfig(dt=dt)
+    if cfg.dt != dt and config is not None:
+        dt = cfg.dt
+    start = flat_start(garment, material) if vertices is None else np.asarray(vertices, dtype=float)
+    base = start if target_base is None else np.asarray(target_base, dtype=float)
+    target = fold_target(base, spec, material.thickness)
+    trajectory = FoldTrajectory(spec, height_ratio, tilt_deg, duration)
+    sim = ClothSimulator(start, garment.triangles, material, friction, cfg, rest=flat_start(garment, material))
+    episode = FoldEpisode(sim, spec, target, settle_time)
+    n_motion = int(round(duration / cfg.dt))
+    n_total = n_motion + int(np.ceil(settle_time / cfg.dt - 1e-9))
+    try:
+        episode.grasp()
+        for k in range(1, n_motion + 1):
+            stats = episode.advance(trajectory.poses_at(k * cfg.dt))
+            if progress:
+                progress(k, n_total, stats)
+        episode.release()
+        episode.settle()
+    except (SimulationFailure, ValueError) as err:
+        if episode.failure is None:
+            episode.failure = str(err)
+    return episode.outcome()
