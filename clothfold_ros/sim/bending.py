@@ -76,14 +76,14 @@ def _hinge(x0, x1, x2, x3):
     return theta, g
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, parallel=True)
 def bending_derivatives(x, h, theta_rest, weight, k, want_hess):
     """Energy (J), per-hinge gradients (H, 12) and Gauss-Newton Hessians (H, 12, 12)."""
     n = h.shape[0]
     grads = np.empty((n, 12))
     hess = np.empty((n, 12, 12)) if want_hess else np.empty((0, 12, 12))
-    e = 0.0
-    for i in range(n):
+    energies = np.empty(n)
+    for i in nb.prange(n):
         theta, g = _hinge(x[h[i, 0]], x[h[i, 1]], x[h[i, 2]], x[h[i, 3]])
         d = theta - theta_rest[i]
         # keep the angle difference in (-pi, pi]
@@ -92,11 +92,14 @@ def bending_derivatives(x, h, theta_rest, weight, k, want_hess):
         elif d < -np.pi:
             d += 2.0 * np.pi
         c = k * weight[i]
-        e += c * d * d
-        grads[i] = 2.0 * c * d * g
+        energies[i] = c * d * d
+        for a in range(12):
+            grads[i, a] = 2.0 * c * d * g[a]
         if want_hess:
-            hess[i] = 2.0 * c * np.outer(g, g)
-    return e, grads, hess
+            for a in range(12):
+                for b in range(12):
+                    hess[i, a, b] = 2.0 * c * g[a] * g[b]
+    return energies.sum(), grads, hess
 
 
 def dihedral_angles(x: np.ndarray, h: np.ndarray) -> np.ndarray:

@@ -18,6 +18,7 @@ class SimConfig:
     newton_window: int = 1  # ... over this many last iterations
     max_newton_iterations: int = 80
     max_line_search_halvings: int = 30
+    max_bc_stages: int = 8  # partial gripper moves per step when CCD blocks the full move
     xi: float | None = None  # m, minimum mid-surface separation (offset)
     dhat: float | None = None  # m, barrier activation distance beyond xi
     eps_v: float = 1e-3  # m/s, smoothed static friction velocity

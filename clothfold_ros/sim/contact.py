@@ -115,12 +115,25 @@ class ContactModel:
         return float(np.sqrt(col.compute_minimum_distance(self.mesh, np.asfortranarray(x))))
 
     def max_step(self, x0: np.ndarray, x1: np.ndarray) -> float:
-        """Largest collision-free fraction of the linear move x0 -> x1 (keeps xi apart)."""
-        return float(
-            ipctk.compute_collision_free_stepsize(
-                self.mesh, np.asfortranarray(x0), np.asfortranarray(x1), min_distance=self.xi
-            )
+        """Largest collision-free fraction of the linear move x0 -> x1 (keeps xi apart).
+
+        ipctk's CCD covers self-contact; the table plane is checked here in closed form
+        (ipctk's step-size query does not look at mesh planes).
+        """
+        self_ccd = ipctk.compute_collision_free_stepsize(
+            self.mesh, np.asfortranarray(x0), np.asfortranarray(x1), min_distance=self.xi
         )
+        return min(float(self_ccd), self.table_step(x0[:, 2], x1[:, 2]))
+
+    def table_step(self, z0: np.ndarray, z1: np.ndarray) -> float:
+        """Largest fraction of z0 -> z1 keeping every vertex above z = xi (10 % margin)."""
+        moving_down = z1 < z0
+        gap = z0 - self.xi
+        reach = z0 - z1
+        hits = moving_down & (z1 <= self.xi + 0.1 * gap)
+        if not hits.any():
+            return 1.0
+        return float(max(0.0, np.min(0.9 * gap[hits] / reach[hits])))
 
     def intersects(self, x: np.ndarray) -> bool:
         """True if the cloth intersects itself or lies below the table top."""

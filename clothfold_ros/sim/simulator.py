@@ -151,7 +151,12 @@ class ClothSimulator:
 
     # -- stepping -------------------------------------------------------------------------
     def step(self, gripper_poses: dict[int, Pose] | None = None) -> StepStats:
-        """Advance by dt; `gripper_poses` gives each closed gripper's pose at the step's end."""
+        """Advance by dt; `gripper_poses` gives each closed gripper's pose at the step's end.
+
+        Grasped vertices are moved to their targets along a collision-free path: when the
+        straight move would hit cloth or table, they move as far as CCD allows, the free
+        cloth relaxes (a Newton solve), and the move goes on (at most `max_bc_stages`).
+        """
         cfg = self.config
         t_start = time.perf_counter()
         phases: dict[str, float] = defaultdict(float)
@@ -160,37 +165,75 @@ class ClothSimulator:
         if missing:
             raise ValueError(f"no pose given for closed gripper(s) {missing}")
         h = self.dt
+        when = f"t={self.time + h:.3f}s"
         x_prev = self.x.copy()
         x_hat = x_prev + h * self.v + h * h * self._gravity
 
         fixed = self.grasped_vertex_ids()
-        x = x_prev.copy()
-        for gid, g in self.grasps.items():
-            x[g.vertex_ids] = g.targets(poses[gid])
-        if fixed.size:
-            tic = time.perf_counter()
-            if self.contact.max_step(x_prev, x) < 1.0:
-                raise SimulationFailure(
-                    f"t={self.time + h:.3f}s: the gripper motion drives the cloth into itself or the table"
-                )
-            phases["ccd"] += time.perf_counter() - tic
-        free = np.ones(len(x), dtype=bool)
+        free = np.ones(len(x_prev), dtype=bool)
         free[fixed] = False
-        free_dof = np.repeat(free, 3)
-        free_idx = np.nonzero(free_dof)[0]
+        x = x_prev.copy()
+        bc = x_prev.copy()
+        for gid, g in self.grasps.items():
+            bc[g.vertex_ids] = g.targets(poses[gid])
 
-        tic = time.perf_counter()
-        self.contact.lag_friction(x_prev)
-        phases["friction_lag"] += time.perf_counter() - tic
         if self.contact.kappa == 0.0:
             _, gm, _, gb, _ = self._elastic(x, True)
             g_el = scatter_gradient(self.ndof, self._tri_dofs, gm) + scatter_gradient(self.ndof, self._hinge_dofs, gb)
             g_e = self._mass_dof * (x - x_hat).ravel() + h * h * g_el
             self.contact.init_kappa(x, g_e, float(self.vertex_mass.mean()))
+        tic = time.perf_counter()
+        self.contact.lag_friction(x_prev)
+        phases["friction_lag"] += time.perf_counter() - tic
 
+        iterations = halvings = stages = 0
+        if fixed.size:
+            while True:
+                trial = x.copy()
+                trial[fixed] = bc[fixed]
+                tic = time.perf_counter()
+                alpha = self.contact.max_step(x, trial)
+                phases["ccd"] += time.perf_counter() - tic
+                if alpha >= 1.0:
+                    x = trial
+                    break
+                stages += 1
+                if alpha < 1e-6 or stages > cfg.max_bc_stages:
+                    raise SimulationFailure(f"{when}: the gripper motion drives the cloth into itself or the table")
+                x[fixed] += 0.8 * alpha * (bc[fixed] - x[fixed])
+                x, it, hv, _, _ = self._newton(x, x_prev, x_hat, free, phases, when)
+                iterations += it
+                halvings += hv
+        x, it, hv, residual, col = self._newton(x, x_prev, x_hat, free, phases, when)
+        iterations += it
+        halvings += hv
+        if cfg.check_intersections:
+            tic = time.perf_counter()
+            if self.contact.intersects(x):
+                raise SimulationFailure(f"{when}: step ended with an intersection")
+            phases["intersection_check"] += time.perf_counter() - tic
+        self.v = (x - x_prev) / h
+        self.x = x
+        self.time += h
+        return StepStats(
+            time=self.time,
+            newton_iterations=iterations,
+            line_search_halvings=halvings,
+            contacts=len(col),
+            min_distance=self.contact.min_distance(col, x),
+            kappa=self.contact.kappa,
+            residual=residual,
+            wall_time=time.perf_counter() - t_start,
+            phases=dict(phases),
+        )
+
+    def _newton(self, x, x_prev, x_hat, free, phases, when):
+        """Projected Newton on the free vertices; returns (x, iterations, halvings, residual, collisions)."""
+        cfg = self.config
+        h = self.dt
+        free_idx = np.nonzero(np.repeat(free, 3))[0]
         residuals: list[float] = []
         halvings = 0
-        col = None
         prev_min = np.inf
         for it in range(1, cfg.max_newton_iterations + 1):
             tic = time.perf_counter()
@@ -218,23 +261,23 @@ class ClothSimulator:
             try:
                 p_f = self._solver.solve(h_ff, -grad[free_idx])
             except np.linalg.LinAlgError as err:
-                raise SimulationFailure(f"t={self.time + h:.3f}s: linear solve failed: {err}") from err
+                raise SimulationFailure(f"{when}: linear solve failed: {err}") from err
             phases["linear_solve"] += time.perf_counter() - tic
             if not np.all(np.isfinite(p_f)):
-                raise SimulationFailure(f"t={self.time + h:.3f}s: Newton direction is not finite")
+                raise SimulationFailure(f"{when}: Newton direction is not finite")
             p = np.zeros(self.ndof)
             p[free_idx] = p_f
             p = p.reshape(-1, 3)
             residual = float(np.sqrt(np.mean(np.sum(p[free] ** 2, axis=1)))) / h if free.any() else 0.0
             residuals.append(residual)
             if len(residuals) >= cfg.newton_window and max(residuals[-cfg.newton_window :]) <= cfg.newton_tol:
-                break
+                return x, it, halvings, residual, col
             # Line search: CCD bound, then backtracking on the incremental potential.
             tic = time.perf_counter()
             alpha = min(1.0, self.contact.max_step(x, x + p))
             phases["ccd"] += time.perf_counter() - tic
             if alpha <= 0.0:
-                raise SimulationFailure(f"t={self.time + h:.3f}s: CCD allows no step (contact locked)")
+                raise SimulationFailure(f"{when}: CCD allows no step (contact locked)")
             tic = time.perf_counter()
             e0 = self._energy(x, x_hat, x_prev, col)
             while True:
@@ -245,34 +288,14 @@ class ClothSimulator:
                 alpha *= 0.5
                 halvings += 1
                 if alpha < 0.5**cfg.max_line_search_halvings:
-                    raise SimulationFailure(f"t={self.time + h:.3f}s: line search stalled (iteration {it})")
+                    raise SimulationFailure(f"{when}: line search stalled (Newton iteration {it})")
             phases["line_search"] += time.perf_counter() - tic
             x = trial
             min_d = self.contact.min_distance(col_t, x)
             if np.isfinite(min_d):
                 self.contact.update_kappa(prev_min if np.isfinite(prev_min) else min_d, min_d)
             prev_min = min_d
-        else:
-            raise SimulationFailure(
-                f"t={self.time + h:.3f}s: Newton did not converge in {cfg.max_newton_iterations} iterations "
-                f"(residual {residuals[-1]:.3g} m/s)"
-            )
-        if cfg.check_intersections:
-            tic = time.perf_counter()
-            if self.contact.intersects(x):
-                raise SimulationFailure(f"t={self.time + h:.3f}s: step ended with an intersection")
-            phases["intersection_check"] += time.perf_counter() - tic
-        self.v = (x - x_prev) / h
-        self.x = x
-        self.time += h
-        return StepStats(
-            time=self.time,
-            newton_iterations=it,
-            line_search_halvings=halvings,
-            contacts=len(col),
-            min_distance=self.contact.min_distance(col, x),
-            kappa=self.contact.kappa,
-            residual=residuals[-1],
-            wall_time=time.perf_counter() - t_start,
-            phases=dict(phases),
+        raise SimulationFailure(
+            f"{when}: Newton did not converge in {cfg.max_newton_iterations} iterations "
+            f"(residual {residuals[-1]:.3g} m/s)"
         )
