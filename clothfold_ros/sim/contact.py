@@ -44,14 +44,24 @@ class ContactModel:
         self.tangential = ipctk.TangentialCollisions()
 
     # -- collision sets --------------------------------------------------------------
-    def build(self, x: np.ndarray) -> ipctk.NormalCollisions:
-        """Active barrier collisions at positions x (N, 3)."""
+    def build(self, x: np.ndarray, candidates: ipctk.Candidates | None = None) -> ipctk.NormalCollisions:
+        """Active barrier collisions at positions x (N, 3).
+
+        `candidates` from `sweep_candidates` of a move through x skip the broad phase.
+        """
         xf = np.asfortranarray(x)
-        cand = ipctk.Candidates()
-        cand.build(self.mesh, xf, self.dhat + self.xi)
+        if candidates is None:
+            candidates = ipctk.Candidates()
+            candidates.build(self.mesh, xf, self.dhat + self.xi)
         col = ipctk.NormalCollisions()
-        col.build(cand, self.mesh, xf, self.dhat, self.xi)
+        col.build(candidates, self.mesh, xf, self.dhat, self.xi)
         return col
+
+    def sweep_candidates(self, x0: np.ndarray, x1: np.ndarray) -> ipctk.Candidates:
+        """Broad-phase candidates for every point of the linear move x0 -> x1."""
+        cand = ipctk.Candidates()
+        cand.build(self.mesh, np.asfortranarray(x0), np.asfortranarray(x1), self.dhat + self.xi)
+        return cand
 
     def set_kappa(self, kappa: float) -> None:
         self.kappa = float(kappa)
@@ -114,15 +124,17 @@ class ContactModel:
             return np.inf
         return float(np.sqrt(col.compute_minimum_distance(self.mesh, np.asfortranarray(x))))
 
-    def max_step(self, x0: np.ndarray, x1: np.ndarray) -> float:
+    def max_step(self, x0: np.ndarray, x1: np.ndarray, candidates: ipctk.Candidates | None = None) -> float:
         """Largest collision-free fraction of the linear move x0 -> x1 (keeps xi apart).
 
         ipctk's CCD covers self-contact; the table plane is checked here in closed form
         (ipctk's step-size query does not look at mesh planes).
         """
-        self_ccd = ipctk.compute_collision_free_stepsize(
-            self.mesh, np.asfortranarray(x0), np.asfortranarray(x1), min_distance=self.xi
-        )
+        a, b = np.asfortranarray(x0), np.asfortranarray(x1)
+        if candidates is None:
+            self_ccd = ipctk.compute_collision_free_stepsize(self.mesh, a, b, min_distance=self.xi)
+        else:
+            self_ccd = candidates.compute_collision_free_stepsize(self.mesh, a, b, min_distance=self.xi)
         return min(float(self_ccd), self.table_step(x0[:, 2], x1[:, 2]))
 
     def table_step(self, z0: np.ndarray, z1: np.ndarray) -> float:

@@ -235,10 +235,12 @@ class ClothSimulator:
         residuals: list[float] = []
         halvings = 0
         prev_min = np.inf
+        col = None  # collisions at x, carried over from the line search
         for it in range(1, cfg.max_newton_iterations + 1):
-            tic = time.perf_counter()
-            col = self.contact.build(x)
-            phases["collisions"] += time.perf_counter() - tic
+            if col is None:
+                tic = time.perf_counter()
+                col = self.contact.build(x)
+                phases["collisions"] += time.perf_counter() - tic
             tic = time.perf_counter()
             u = x - x_prev
             _, gm, hm, gb, hb = self._elastic(x, True)
@@ -274,7 +276,8 @@ class ClothSimulator:
                 return x, it, halvings, residual, col
             # Line search: CCD bound, then backtracking on the incremental potential.
             tic = time.perf_counter()
-            alpha = min(1.0, self.contact.max_step(x, x + p))
+            cand = self.contact.sweep_candidates(x, x + p)  # one broad phase for CCD and line search
+            alpha = min(1.0, self.contact.max_step(x, x + p, cand))
             phases["ccd"] += time.perf_counter() - tic
             if alpha <= 0.0:
                 raise SimulationFailure(f"{when}: CCD allows no step (contact locked)")
@@ -282,7 +285,7 @@ class ClothSimulator:
             e0 = self._energy(x, x_hat, x_prev, col)
             while True:
                 trial = x + alpha * p
-                col_t = self.contact.build(trial)
+                col_t = self.contact.build(trial, cand)
                 if self._energy(trial, x_hat, x_prev, col_t) <= e0:
                     break
                 alpha *= 0.5
@@ -291,6 +294,7 @@ class ClothSimulator:
                     raise SimulationFailure(f"{when}: line search stalled (Newton iteration {it})")
             phases["line_search"] += time.perf_counter() - tic
             x = trial
+            col = col_t
             min_d = self.contact.min_distance(col_t, x)
             if np.isfinite(min_d):
                 self.contact.update_kappa(prev_min if np.isfinite(prev_min) else min_d, min_d)

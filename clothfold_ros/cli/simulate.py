@@ -1,0 +1,71 @@
+"""`clothfold simulate`: one fold on the IPC simulator without ROS."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("simulate", help="simulate one fold headless (no ROS) and write loss, mesh, stats, PNG")
+    p.add_argument("--shape", type=int, default=1, choices=(1, 2, 3), help="shirt shape preset (SPEC table)")
+    p.add_argument("--material", default="cotton", help="cotton, wool, polyester, thin_cotton, thick_cotton")
+    p.add_argument("--friction", type=float, default=0.5, help="Coulomb coefficient for every contact")
+    p.add_argument("--fold", default="left_sleeve", help="left_sleeve, right_sleeve, left_side, right_side, middle")
+    p.add_argument("--height-ratio", type=float, default=0.45)
+    p.add_argument("--tilt", type=float, default=51.4, help="tilt angle (deg)")
+    p.add_argument("--duration", type=float, default=4.0, help="motion time T (s)")
+    p.add_argument("--max-area", type=float, default=1 / 20000, help="max triangle area (m^2); 1/20000 = full")
+    p.add_argument("--dt", type=float, default=0.04, help="time step (s)")
+    p.add_argument("--settle", type=float, default=0.2, help="settle time after release (s)")
+    p.add_argument("--newton-tol", type=float, default=1e-3, help="Newton stop: RMS(|dx|)/dt (m/s)")
+    p.add_argument("--out", type=Path, default=Path("out/simulate"), help="output directory")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..folding import fold_spec
+    from ..garment import make_shirt
+    from ..materials import material
+    from ..sim.config import SimConfig
+    from ..sim.report import write_outcome
+    from ..sim.runner import flat_start, run_fold
+
+    try:
+        mat = material(args.material)
+        garment = make_shirt(args.shape, max_area=args.max_area)
+        start = flat_start(garment, mat)
+        spec = fold_spec(args.fold, garment.keypoints(start))
+        cfg = SimConfig(dt=args.dt, newton_tol=args.newton_tol)
+    except ValueError as err:
+        print(f"clothfold simulate: {err}", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+
+    def progress(k: int, n: int, stats) -> None:
+        if args.quiet:
+            return
+        el = time.perf_counter() - t0
+        eta = el / k * (n - k)
+        print(f"\r  step {k}/{n}  t={stats.time:.2f}s  newton {stats.newton_iterations:2d}  "
+              f"contacts {stats.contacts:5d}  elapsed {el:6.1f}s  eta {eta:6.1f}s", end="", file=sys.stderr, flush=True)
+
+    print(f"simulating {args.fold} of shape {args.shape} ({len(garment.vertices)} vertices, "
+          f"{len(garment.triangles)} triangles), {args.material}, mu={args.friction}, "
+          f"h={args.height_ratio}, tilt={args.tilt} deg, T={args.duration} s", file=sys.stderr)
+    outcome = run_fold(garment, spec, mat, args.friction, args.height_ratio, args.tilt, args.duration,
+                       cfg.dt, args.settle, config=cfg, progress=progress)
+    if not args.quiet:
+        print(file=sys.stderr)
+    meta = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items() if k != "func"}
+    meta.update(vertices=len(garment.vertices), triangles=len(garment.triangles))
+    summary = write_outcome(outcome, garment.triangles, args.out, meta,
+                            title=f"{args.fold} h={args.height_ratio} tilt={args.tilt}")
+    if outcome.success:
+        print(f"loss {outcome.loss * 1000:.2f} mm  ({outcome.steps} steps, {outcome.newton_iterations} Newton "
+              f"iterations, {outcome.wall_time:.1f} s)  -> {args.out}")
+    else:
+        print(f"FAILED: {outcome.reason}  -> {args.out}")
+    return 0 if summary["success"] else 1
