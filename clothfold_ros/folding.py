@@ -1,0 +1,213 @@
+"""Fold specifications from shirt keypoints (SPEC section 5).
+
+Frame: table frame, metres, z up. A fold line is a horizontal line (point + unit
+direction); the cloth on the grippers' side of the vertical plane through it is folded
+onto the other side. Gripper frame: x = world up, z = horizontal approach direction.
+
+Tilt signs (used by `trajectory.bezier_control_point`): a positive tilt rotates the
+raised control point about k = unit(e - s) (right hand), which moves it sideways along
+k x z_up. For each gripper the sign is sign((k x z_up) . o) with o the outward direction
+along the fold line: toward the shoulder for a sleeve, away from the other gripper for
+the side and middle folds. So a larger tilt always makes the arc bow further outward.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .pose import Pose
+
+FOLD_NAMES: tuple[str, ...] = ("left_sleeve", "right_sleeve", "left_side", "right_side", "middle")
+FOLD_SEQUENCE: tuple[str, ...] = FOLD_NAMES  # the order a shirt is folded in
+LAYER_OFFSET_FACTOR: dict[str, float] = {"sleeve": 2.0, "side": 3.0, "middle": 4.0}  # x thickness
+MIN_GRIPPER_LINE_DISTANCE = 1e-3  # m
+SLEEVE_LINE_ANGLE_DEG = 30.0  # sleeve fold line vs the side seam
+
+_UP = np.array([0.0, 0.0, 1.0])
+
+
+def fold_type(name: str) -> str:
+    """'sleeve', 'side' or 'middle' for a name in FOLD_NAMES (ValueError otherwise)."""
+    if name not in FOLD_NAMES:
+        raise ValueError(f"unknown fold {name!r}; known folds: {', '.join(FOLD_NAMES)}")
+    return name.rsplit("_", 1)[-1]
+
+
+def _vec3(v: object, what: str) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    if a.shape != (3,):
+        raise ValueError(f"{what} must be a 3-vector, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{what} must be finite, got {a}")
+    return a
+
+
+def _horizontal_unit(v: np.ndarray, what: str) -> np.ndarray:
+    h = np.array([v[0], v[1], 0.0])
+    n = np.linalg.norm(h)
+    if n < 1e-9:
+        raise ValueError(f"{what} has no horizontal extent")
+    return h / n
+
+
+@dataclass(frozen=True, eq=False)
+class FoldSpec:
+    """A fold: horizontal fold line (line_point m, unit line_direction) and per gripper a
+    start and end pose and a tilt sign; layer_offset_factor x thickness raises the
+    folded layer in the target."""
+
+    name: str
+    line_point: np.ndarray
+    line_direction: np.ndarray
+    start_poses: tuple[Pose, ...]
+    end_poses: tuple[Pose, ...]
+    tilt_signs: tuple[float, ...]
+    layer_offset_factor: float
+    normal: np.ndarray = field(init=False, repr=False)  # horizontal unit, toward the grippers
+
+    def __post_init__(self) -> None:
+        p = _vec3(self.line_point, "fold line point")
+        d = _vec3(self.line_direction, "fold line direction")
+        nd = np.linalg.norm(d)
+        if nd < 1e-9:
+            raise ValueError("fold line direction is zero")
+        d = d / nd
+        if abs(d[2]) > 1e-6:
+            raise ValueError(f"fold line direction must be horizontal, got {d}")
+        d = _horizontal_unit(d, "fold line direction")
+        starts, ends = tuple(self.start_poses), tuple(self.end_poses)
+        signs = tuple(float(s) for s in self.tilt_signs)
+        if not starts:
+            raise ValueError("a fold needs at least one gripper")
+        if not all(isinstance(q, Pose) for q in starts + ends):
+            raise ValueError("start_poses and end_poses must be Pose objects")
+        if not len(starts) == len(ends) == len(signs):
+            raise ValueError(
+                f"{len(starts)} start poses, {len(ends)} end poses and {len(signs)} tilt signs: counts differ")
+        if any(s not in (-1.0, 1.0) for s in signs):
+            raise ValueError(f"tilt signs must be +1 or -1, got {signs}")
+        if not (math.isfinite(self.layer_offset_factor) and self.layer_offset_factor > 0):
+            raise ValueError(f"layer_offset_factor must be > 0, got {self.layer_offset_factor}")
+        n0 = np.cross(_UP, d)
+        dist = np.array([n0 @ (q.position - p) for q in starts])
+        for i, di in enumerate(dist):
+            if abs(di) < MIN_GRIPPER_LINE_DISTANCE:
+                raise ValueError(
+                    f"fold {self.name!r}: gripper {i} at {starts[i].position} is {abs(di) * 1e3:.3g} mm from "
+                    f"the fold line (needs >= {MIN_GRIPPER_LINE_DISTANCE * 1e3:g} mm)")
+        if np.any(dist > 0) and np.any(dist < 0):
+            raise ValueError(f"fold {self.name!r}: grippers lie on both sides of the fold line")
+        for k, v in (("line_point", p), ("line_direction", d), ("start_poses", starts), ("end_poses", ends),
+                     ("tilt_signs", signs), ("layer_offset_factor", float(self.layer_offset_factor)),
+                     ("normal", n0 if dist[0] > 0 else -n0)):
+            object.__setattr__(self, k, v)
+
+    @property
+    def n_grippers(self) -> int:
+        return len(self.start_poses)
+
+    def side_of_line(self, points: np.ndarray) -> np.ndarray:
+        """Signed horizontal distance (m) of points (N, 3) from the vertical plane through
+        the fold line; positive on the grippers' side. A single (3,) point gives a scalar."""
+        pts = np.asarray(points, dtype=float)
+        if pts.shape[-1] != 3:
+            raise ValueError(f"points must have shape (..., 3), got {pts.shape}")
+        return (pts - self.line_point) @ self.normal
+
+
+def _keypoints(name: str, keypoints: Mapping[str, object], needed: list[str]) -> dict[str, np.ndarray]:
+    missing = [k for k in needed if k not in keypoints]
+    if missing:
+        raise ValueError(f"fold {name!r} needs keypoints {', '.join(needed)}; missing: {', '.join(missing)}")
+    kp = {k: _vec3(keypoints[k], f"keypoint {k!r}") for k in needed}
+    for i, a in enumerate(needed):
+        for b in needed[i + 1:]:
+            if np.linalg.norm((kp[a] - kp[b])[:2]) < 1e-6:
+                raise ValueError(f"fold {name!r}: keypoints {a!r} and {b!r} coincide at {kp[a][:2]}")
+    return kp
+
+
+def _outward_sign(start: np.ndarray, end: np.ndarray, outward: np.ndarray) -> float:
+    """+1 if a positive tilt about unit(end - start) moves the control point along `outward`."""
+    k = end - start
+    side = np.cross(k / np.linalg.norm(k), _UP)
+    return 1.0 if side @ outward >= 0 else -1.0
+
+
+def fold_spec(
+    name: str,
+    keypoints: Mapping[str, object],
+    end_angle_deg: float = 175.0,
+    end_height: float = 0.05,
+) -> FoldSpec:
+    """The fold `name` (FOLD_NAMES) from keypoint positions (name -> (3,) m, table frame).
+
+    Every fold of the sequence is planned from the flat shirt's keypoints (after the side
+    folds both hem corners lie near the centre line). The end pose is the start pose
+    rotated by end_angle_deg about the fold line (over the top), then moved to z =
+    end_height m.
+    """
+    kind = fold_type(name)
+    if not (math.isfinite(end_angle_deg) and 0.0 < end_angle_deg <= 180.0):
+        raise ValueError(f"end_angle_deg must be in (0, 180], got {end_angle_deg}")
+    if not (math.isfinite(end_height) and end_height >= 0.0):
+        raise ValueError(f"end_height must be >= 0 m, got {end_height}")
+
+    if kind == "sleeve":
+        side = name.split("_")[0]
+        kp = _keypoints(name, keypoints, [f"armpit_{side}", f"bottom_{side}", f"sleeve_top_{side}",
+                                          f"sleeve_bottom_{side}", f"shoulder_{side}"])
+        armpit, shoulder = kp[f"armpit_{side}"], kp[f"shoulder_{side}"]
+        seam = _horizontal_unit(kp[f"bottom_{side}"] - armpit, f"{name}: armpit to bottom")
+        angle = SLEEVE_LINE_ANGLE_DEG if side == "right" else 180.0 - SLEEVE_LINE_ANGLE_DEG
+        d = Rotation.from_rotvec(math.radians(angle) * _UP).apply(seam)
+        line_point = armpit
+        grips = [(kp[f"sleeve_top_{side}"] + kp[f"sleeve_bottom_{side}"]) / 2]
+        approach = [_horizontal_unit((shoulder + armpit) / 2 - grips[0], f"{name}: approach")]
+        outward = [d * np.sign(d @ (shoulder - armpit))]
+    else:
+        hem_names = ["bottom_left", "bottom_right"]
+        extra = ([f"armpit_{name.split('_')[0]}", "neck_left", "neck_right"] if kind == "side"
+                 else ["shoulder_left", "shoulder_right"])
+        kp = _keypoints(name, keypoints, hem_names + extra)
+        bl, br = kp["bottom_left"], kp["bottom_right"]
+        x_hat = _horizontal_unit(br - bl, f"{name}: hem")  # the shirt's +x (its right side)
+        y_hat = np.cross(_UP, x_hat)  # the shirt's +y (toward the neck)
+        width = np.linalg.norm((br - bl)[:2])
+        if kind == "side":
+            side = name.split("_")[0]
+            sgn = 1.0 if side == "right" else -1.0
+            corner = br if side == "right" else bl
+            line_point = corner - sgn * (width / 4) * x_hat
+            d = -sgn * y_hat  # grippers on the up x d side
+            grips = [kp[f"armpit_{side}"], corner]
+            centre = (bl + br + kp["neck_left"] + kp["neck_right"]) / 4
+            approach = [_horizontal_unit(centre - g, f"{name}: approach") for g in grips]
+        else:
+            line_point = ((kp["shoulder_left"] + kp["shoulder_right"]) / 2 + (bl + br) / 2) / 2
+            d = -x_hat  # grippers (below the line) on the up x d side
+            grips = [bl + 0.25 * (br - bl), bl + 0.75 * (br - bl)]
+            approach = [y_hat, y_hat]
+        outward = [d * np.sign(d @ (grips[0] - grips[1])), d * np.sign(d @ (grips[1] - grips[0]))]
+
+    starts = tuple(Pose.from_axes(g, _UP, a) for g, a in zip(grips, approach))
+    n0 = np.cross(_UP, d)
+    ends, signs = [], []
+    for q, o in zip(starts, outward):
+        # rotate over the top: the positive sense about d lifts a point on the up x d side
+        sense = 1.0 if n0 @ (q.position - line_point) >= 0 else -1.0
+        rot = Rotation.from_rotvec(sense * math.radians(end_angle_deg) * d)
+        pos = line_point + rot.apply(q.position - line_point)
+        pos[2] = end_height
+        ends.append(Pose(pos, (rot * q.rotation).as_quat()))
+        signs.append(_outward_sign(q.position, pos, o))
+    return FoldSpec(name, line_point, d, starts, tuple(ends), tuple(signs), LAYER_OFFSET_FACTOR[kind])
+
+
+def fold_sequence_specs(keypoints: Mapping[str, object], **kwargs: float) -> list[FoldSpec]:
+    """All FOLD_SEQUENCE specs from the flat shirt's keypoints."""
+    return [fold_spec(n, keypoints, **kwargs) for n in FOLD_SEQUENCE]
