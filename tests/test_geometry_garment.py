@@ -142,3 +142,12 @@ def test_bad_make_shirt_arguments():
         make_shirt(1, max_area=float("nan"))
     with pytest.raises(ValueError, match="z must be finite"):
         make_shirt(1, max_area=COARSE, z=float("nan"))
+
+
+def test_cli_shirt_writes_png(tmp_path, capsys):
+    from clothfold_ros.cli import main
+
+    out = tmp_path / "shirt.png"
+    assert main(["shirt", "--shape", "3", "--fold", "right_sleeve", "--out", str(out), "--max-area", "0.002"]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "134 trajectories" in capsys.readouterr().out
