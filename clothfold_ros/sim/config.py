@@ -18,7 +18,9 @@ class SimConfig:
     newton_window: int = 1  # ... over this many last iterations
     max_newton_iterations: int = 80
     max_line_search_halvings: int = 30
-    max_bc_stages: int = 8  # partial gripper moves per step when CCD blocks the full move
+    max_bc_stages: int = 6  # spring rounds per step when CCD blocks the straight gripper move
+    grasp_spring: float = 1e4  # 1/s^2 x mass: first spring stiffness pulling grasped cloth
+    grasp_tolerance: float = 1e-4  # m: grasped cloth may end a step this far from its target
     xi: float | None = None  # m, minimum mid-surface separation (offset)
     dhat: float | None = None  # m, barrier activation distance beyond xi
     eps_v: float = 1e-3  # m/s, smoothed static friction velocity

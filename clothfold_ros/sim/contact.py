@@ -33,12 +33,15 @@ class ContactModel:
         self.mesh.planes = [ipctk.Hyperplane(np.array([0.0, 0.0, 1.0]), np.zeros(3))]
         self.xi = float(xi)
         self.dhat = float(dhat)
+        # The barrier is singular at xi and reaches xi + dhat.
+        self.barrier_dmin = self.xi
+        self.barrier_dhat = self.dhat
         self.mu = float(friction)
         self.dt = float(dt)
         self.friction = ipctk.FrictionPotential(eps_v * dt)  # acts on displacements
         self.kappa = 0.0
         self.kappa_max = 0.0
-        self.barrier = ipctk.BarrierPotential(self.dhat, 1.0)
+        self.barrier = ipctk.BarrierPotential(self.barrier_dhat, 1.0)
         self.bbox_diagonal = float(ipctk.world_bbox_diagonal_length(np.asfortranarray(rest)))
         self.collisions = ipctk.NormalCollisions()
         self.tangential = ipctk.TangentialCollisions()
@@ -52,35 +55,35 @@ class ContactModel:
         xf = np.asfortranarray(x)
         if candidates is None:
             candidates = ipctk.Candidates()
-            candidates.build(self.mesh, xf, self.dhat + self.xi)
+            candidates.build(self.mesh, xf, self.barrier_dhat + self.barrier_dmin)
         col = ipctk.NormalCollisions()
-        col.build(candidates, self.mesh, xf, self.dhat, self.xi)
+        col.build(candidates, self.mesh, xf, self.barrier_dhat, self.barrier_dmin)
         return col
 
     def sweep_candidates(self, x0: np.ndarray, x1: np.ndarray) -> ipctk.Candidates:
         """Broad-phase candidates for every point of the linear move x0 -> x1."""
         cand = ipctk.Candidates()
-        cand.build(self.mesh, np.asfortranarray(x0), np.asfortranarray(x1), self.dhat + self.xi)
+        cand.build(self.mesh, np.asfortranarray(x0), np.asfortranarray(x1), self.barrier_dhat + self.barrier_dmin)
         return cand
 
     def set_kappa(self, kappa: float) -> None:
         self.kappa = float(kappa)
-        self.barrier = ipctk.BarrierPotential(self.dhat, self.kappa)
+        self.barrier = ipctk.BarrierPotential(self.barrier_dhat, self.kappa)
 
     def init_kappa(self, x: np.ndarray, grad_energy: np.ndarray, avg_mass: float) -> None:
         """Choose the barrier stiffness the IPC way (balance barrier and energy gradients)."""
         col = self.build(x)
-        unit = ipctk.BarrierPotential(self.dhat, 1.0)
+        unit = ipctk.BarrierPotential(self.barrier_dhat, 1.0)
         grad_b = unit.gradient(col, self.mesh, np.asfortranarray(x)) if len(col) else np.zeros_like(grad_energy)
         kappa, kmax = ipctk.initial_barrier_stiffness(
-            self.bbox_diagonal, unit.barrier, self.dhat, avg_mass, grad_energy, grad_b, dmin=self.xi
+            self.bbox_diagonal, unit.barrier, self.barrier_dhat, avg_mass, grad_energy, grad_b, dmin=self.barrier_dmin
         )
         self.kappa_max = max(self.kappa_max, kmax)
         self.set_kappa(max(self.kappa, kappa))
 
     def update_kappa(self, prev_min_dist: float, min_dist: float) -> None:
         k = ipctk.update_barrier_stiffness(
-            prev_min_dist, min_dist, self.kappa_max, self.kappa, self.bbox_diagonal, dmin=self.xi
+            prev_min_dist, min_dist, self.kappa_max, self.kappa, self.bbox_diagonal, dmin=self.barrier_dmin
         )
         if k != self.kappa:
             self.set_kappa(k)
@@ -124,6 +127,20 @@ class ContactModel:
             return np.inf
         return float(np.sqrt(col.compute_minimum_distance(self.mesh, np.asfortranarray(x))))
 
+    def separated(self, col: ipctk.NormalCollisions, x: np.ndarray) -> bool:
+        """True if every active pair is more than xi apart.
+
+        CCD with a minimum distance works to a tolerance and can hand back a step that
+        ends a hair inside xi, where the barrier is undefined; line searches reject
+        such states with this check.
+        """
+        return self.min_distance(col, x) > self.xi
+
+    @property
+    def ccd_min_distance(self) -> float:
+        """Separation the CCD keeps (m): the offset xi."""
+        return self.xi
+
     def max_step(self, x0: np.ndarray, x1: np.ndarray, candidates: ipctk.Candidates | None = None) -> float:
         """Largest collision-free fraction of the linear move x0 -> x1 (keeps xi apart).
 
@@ -132,9 +149,9 @@ class ContactModel:
         """
         a, b = np.asfortranarray(x0), np.asfortranarray(x1)
         if candidates is None:
-            self_ccd = ipctk.compute_collision_free_stepsize(self.mesh, a, b, min_distance=self.xi)
+            self_ccd = ipctk.compute_collision_free_stepsize(self.mesh, a, b, min_distance=self.ccd_min_distance)
         else:
-            self_ccd = candidates.compute_collision_free_stepsize(self.mesh, a, b, min_distance=self.xi)
+            self_ccd = candidates.compute_collision_free_stepsize(self.mesh, a, b, min_distance=self.ccd_min_distance)
         return min(float(self_ccd), self.table_step(x0[:, 2], x1[:, 2]))
 
     def table_step(self, z0: np.ndarray, z1: np.ndarray) -> float:

@@ -143,19 +143,22 @@ class ClothSimulator:
         )
         return em + eb, gm, hm, gb, hb
 
-    def _energy(self, x, x_hat, x_prev, col) -> float:
+    def _energy(self, x, x_hat, x_prev, col, pull=None) -> float:
         h2 = self.dt**2
         d = (x - x_hat).ravel()
         e_el = self._elastic(x, False)[0]
-        return 0.5 * d @ (self._mass_dof * d) + h2 * e_el + self.contact.energy(col, x, x - x_prev)
+        e = 0.5 * d @ (self._mass_dof * d) + h2 * e_el + self.contact.energy(col, x, x - x_prev)
+        if pull is not None:
+            e += 0.5 * float(pull[0] @ np.sum((x - pull[1]) ** 2, axis=1))
+        return e
 
     # -- stepping -------------------------------------------------------------------------
     def step(self, gripper_poses: dict[int, Pose] | None = None) -> StepStats:
         """Advance by dt; `gripper_poses` gives each closed gripper's pose at the step's end.
 
-        Grasped vertices are moved to their targets along a collision-free path: when the
-        straight move would hit cloth or table, they move as far as CCD allows, the free
-        cloth relaxes (a Newton solve), and the move goes on (at most `max_bc_stages`).
+        Grasped vertices go straight to their targets when that move is collision-free;
+        otherwise they are pulled there by a stiff spring (all vertices free, so the
+        barrier pushes the cloth in the way aside) and then pinned (see _move_grasped).
         """
         cfg = self.config
         t_start = time.perf_counter()
@@ -186,24 +189,11 @@ class ClothSimulator:
         self.contact.lag_friction(x_prev)
         phases["friction_lag"] += time.perf_counter() - tic
 
-        iterations = halvings = stages = 0
+        iterations = halvings = 0
         if fixed.size:
-            while True:
-                trial = x.copy()
-                trial[fixed] = bc[fixed]
-                tic = time.perf_counter()
-                alpha = self.contact.max_step(x, trial)
-                phases["ccd"] += time.perf_counter() - tic
-                if alpha >= 1.0:
-                    x = trial
-                    break
-                stages += 1
-                if alpha < 1e-6 or stages > cfg.max_bc_stages:
-                    raise SimulationFailure(f"{when}: the gripper motion drives the cloth into itself or the table")
-                x[fixed] += 0.8 * alpha * (bc[fixed] - x[fixed])
-                x, it, hv, _, _ = self._newton(x, x_prev, x_hat, free, phases, when)
-                iterations += it
-                halvings += hv
+            x, it, hv = self._move_grasped(x, x_prev, x_hat, fixed, bc, phases, when)
+            iterations += it
+            halvings += hv
         x, it, hv, residual, col = self._newton(x, x_prev, x_hat, free, phases, when)
         iterations += it
         halvings += hv
@@ -227,8 +217,48 @@ class ClothSimulator:
             phases=dict(phases),
         )
 
-    def _newton(self, x, x_prev, x_hat, free, phases, when):
-        """Projected Newton on the free vertices; returns (x, iterations, halvings, residual, collisions)."""
+    def _move_grasped(self, x, x_prev, x_hat, fixed, bc, phases, when):
+        """Bring grasped vertices to their targets bc[fixed] without any intersection.
+
+        The straight move is taken when CCD allows it. Otherwise a spring energy
+        k/2 sum m_i |x_i - bc_i|^2 on the grasped vertices (k raised 10x per round, the
+        penalty stage of an augmented-Lagrangian treatment of moving boundary conditions)
+        pulls them along while the whole cloth is solved, until the last gap can be
+        closed by a collision-free straight move or is below `grasp_tolerance` (the
+        augmented-Lagrangian convergence test). Returns (x, iterations, halvings).
+        """
+        cfg = self.config
+        iterations = halvings = 0
+        all_free = np.ones(len(x), dtype=bool)
+        k = cfg.grasp_spring
+        for _ in range(cfg.max_bc_stages + 1):
+            trial = x.copy()
+            trial[fixed] = bc[fixed]
+            tic = time.perf_counter()
+            alpha = self.contact.max_step(x, trial)
+            phases["ccd"] += time.perf_counter() - tic
+            if alpha >= 1.0 and self.contact.separated(self.contact.build(trial), trial):
+                return trial, iterations, halvings
+            if iterations and np.abs(x[fixed] - bc[fixed]).max() <= cfg.grasp_tolerance:
+                return x, iterations, halvings  # pinned within tolerance where the spring left it
+            weight = np.zeros(len(x))
+            weight[fixed] = k * self.vertex_mass[fixed]
+            x, it, hv, _, _ = self._newton(x, x_prev, x_hat, all_free, phases, when, pull=(weight, bc))
+            iterations += it
+            halvings += hv
+            k *= 10.0
+        gap = float(np.abs(x[fixed] - bc[fixed]).max())
+        raise SimulationFailure(
+            f"{when}: the gripper motion drives the cloth into itself or the table "
+            f"(grasped cloth stays {gap * 1000:.2f} mm from the gripper)"
+        )
+
+    def _newton(self, x, x_prev, x_hat, free, phases, when, pull=None):
+        """Projected Newton on the free vertices; returns (x, iterations, halvings, residual, collisions).
+
+        pull = (per-vertex spring weight (N,), anchor positions (N, 3)) adds the energy
+        1/2 sum w_i |x_i - anchor_i|^2.
+        """
         cfg = self.config
         h = self.dt
         free_idx = np.nonzero(np.repeat(free, 3))[0]
@@ -250,7 +280,12 @@ class ClothSimulator:
             grad += h * h * (
                 scatter_gradient(self.ndof, self._tri_dofs, gm) + scatter_gradient(self.ndof, self._hinge_dofs, gb)
             )
-            hess = self._pattern.assemble([h * h * hm, h * h * hb], self._mass_dof)
+            diag = self._mass_dof
+            if pull is not None:
+                w3 = np.repeat(pull[0], 3)
+                grad += w3 * (x - pull[1]).ravel()
+                diag = diag + w3
+            hess = self._pattern.assemble([h * h * hm, h * h * hb], diag)
             phases["assembly"] += time.perf_counter() - tic
             tic = time.perf_counter()
             grad += self.contact.gradient(col, x, u)
@@ -282,11 +317,11 @@ class ClothSimulator:
             if alpha <= 0.0:
                 raise SimulationFailure(f"{when}: CCD allows no step (contact locked)")
             tic = time.perf_counter()
-            e0 = self._energy(x, x_hat, x_prev, col)
+            e0 = self._energy(x, x_hat, x_prev, col, pull)
             while True:
                 trial = x + alpha * p
                 col_t = self.contact.build(trial, cand)
-                if self._energy(trial, x_hat, x_prev, col_t) <= e0:
+                if self.contact.separated(col_t, trial) and self._energy(trial, x_hat, x_prev, col_t, pull) <= e0:
                     break
                 alpha *= 0.5
                 halvings += 1
