@@ -1,0 +1,195 @@
+"""Tidy lookup tables: one CSV row per simulated fan point, with provenance.
+
+A table directory (one per scenario, e.g. config/tables/shape1/) holds
+- `table.csv`: scenario, fold(s), features (scenario.FEATURE_NAMES), point, height_ratio,
+  tilt_deg, loss_m (NaN for failures), success, reason, wall_time_s, newton_iterations,
+  steps, max_area_m2, vertices;
+- `provenance.json`: git commit, command, resolution, fan points, date, coverage;
+- `finals.npz`: triangles, start and target vertices and each run's final vertices
+  (float32, m) keyed `pNNN`;
+- the sweep's own `settings.json`, `scenario.json` and `runs.jsonl`.
+"""
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import json
+import math
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .scenario import FEATURE_NAMES, scenario
+
+TABLE = "table.csv"
+PROVENANCE = "provenance.json"
+FINALS_NPZ = "finals.npz"
+COLUMNS = ("scenario", "folds", "shape", "material", *FEATURE_NAMES, "point", "height_ratio", "tilt_deg", "loss_m",
+           "success", "reason", "wall_time_s", "newton_iterations", "steps", "max_area_m2", "vertices")
+
+
+def read_runs(path: str | Path) -> list[dict]:
+    """Rows of a runs.jsonl; a partial last line (killed mid-write) is ignored. Later
+    duplicates of a point (none in a healthy log) replace earlier ones."""
+    rows: dict[int, dict] = {}
+    lines = Path(path).read_text().split("\n")
+    for i, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            r = json.loads(line)
+        except json.JSONDecodeError:
+            if i == len(lines) - 1:
+                continue  # the partial tail of a killed append
+            raise ValueError(f"{path}:{i + 1}: broken line") from None
+        rows[int(r["point"])] = r
+    return [rows[k] for k in sorted(rows)]
+
+
+def best_row(rows: list[dict]) -> dict | None:
+    """The successful row of least loss (None if none succeeded)."""
+    ok = [r for r in rows if r["success"] and math.isfinite(r["loss_m"])]
+    return min(ok, key=lambda r: (r["loss_m"], r["point"])) if ok else None
+
+
+@dataclass
+class Table:
+    """A loaded scenario table: metadata and column arrays (points sorted)."""
+
+    name: str
+    features: dict[str, float]
+    point: np.ndarray  # (K,) fan indices
+    height_ratio: np.ndarray  # (K,)
+    tilt_deg: np.ndarray  # (K,) deg
+    loss: np.ndarray  # (K,) m, NaN where failed
+    success: np.ndarray  # (K,) bool
+    reason: list[str]
+    provenance: dict
+
+    @property
+    def fold_type(self) -> float:
+        return self.features["fold_type"]
+
+    def loss_at(self, point: int) -> tuple[float, bool]:
+        """(loss m, success) of fan point `point`; KeyError if not simulated here."""
+        k = np.flatnonzero(self.point == point)
+        if len(k) == 0:
+            raise KeyError(f"fan point {point} is not in table {self.name!r}")
+        return float(self.loss[k[0]]), bool(self.success[k[0]])
+
+
+def git_commit(repo: str | Path = ".") -> str:
+    """`git describe`-like commit id of the working tree (+ '-dirty'), or 'unknown'."""
+    try:
+        c = subprocess.run(["git", "rev-parse", "HEAD"], cwd=repo, capture_output=True, text=True, check=True).stdout
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "clothfold_ros"], cwd=repo,
+                               capture_output=True, text=True, check=True).stdout
+        return c.strip() + ("-dirty" if dirty.strip() else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def write_table(sweep_dir: str | Path, command: str, points: list[int], pack: bool = True) -> Path:
+    """Build table.csv + provenance.json (+ finals.npz) from a sweep directory."""
+    from ..garment import make_shirt
+    from ..materials import material
+    from ..sim.runner import flat_start
+    from .sweep import FINALS, RUNS, SETTINGS, START, load_final
+
+    d = Path(sweep_dir)
+    settings = json.loads((d / SETTINGS).read_text())
+    info = json.loads((d / "scenario.json").read_text())
+    sc = scenario(settings["scenario"])
+    garment = make_shirt(sc.shape, max_area=settings["max_area"])
+    rows = read_runs(d / RUNS)
+    with open(d / TABLE, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS)
+        w.writeheader()
+        for r in rows:
+            w.writerow({"scenario": sc.name, "folds": "+".join(sc.folds), "shape": sc.shape, "material": sc.material,
+                        **{k: f"{info['features'][k]:.6g}" for k in FEATURE_NAMES},
+                        "point": r["point"], "height_ratio": f"{r['height_ratio']:.6g}",
+                        "tilt_deg": f"{r['tilt_deg']:.6g}", "loss_m": f"{r['loss_m']:.6g}",
+                        "success": int(bool(r["success"])), "reason": r["reason"], "wall_time_s": r["wall_time_s"],
+                        "newton_iterations": r["newton_iterations"], "steps": r["steps"],
+                        "max_area_m2": settings["max_area"], "vertices": len(garment.vertices)})
+    done = {int(r["point"]) for r in rows}
+    missing = sorted(set(points) - done)
+    best = best_row(rows)
+    prov = {
+        "scenario": sc.as_dict(), "settings": settings, "features": info["features"],
+        "spec_note": info.get("spec_note", ""), "start_from": info.get("start_from"),
+        "start_point": info.get("start_point"), "start_loss_m": info.get("start_loss_m"),
+        "git_commit": git_commit(), "command": command,
+        "resolution": {"max_area_m2": settings["max_area"], "vertices": len(garment.vertices),
+                       "triangles": len(garment.triangles)},
+        "fan_points": sorted(points), "simulated": len(rows), "missing_points": missing,
+        "failures": sum(not r["success"] for r in rows), "complete": not missing,
+        "best": None if best is None else {k: best[k] for k in ("point", "height_ratio", "tilt_deg", "loss_m")},
+        "cpu_seconds": round(sum(r["wall_time_s"] for r in rows), 1),
+        "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+    }
+    (d / PROVENANCE).write_text(json.dumps(prov, indent=1))
+    if pack:
+        mat = material(sc.material)
+        arrays = {"triangles": garment.triangles.astype(np.int32)}
+        if (d / START).exists():
+            with np.load(d / START) as z:
+                arrays["start"], base = z["vertices"].astype(np.float32), z["target"]
+        else:
+            arrays["start"] = flat_start(garment, mat).astype(np.float32)
+        arrays["target"] = _final_target(d, garment).astype(np.float32)
+        for p in sorted(done):
+            try:
+                arrays[f"p{p:03d}"] = load_final(d, p)
+            except FileNotFoundError:
+                pass  # failed before any fold finished: no final state
+        np.savez_compressed(d / FINALS_NPZ, **arrays)
+        for p in (d / FINALS).glob("*.npy") if (d / FINALS).exists() else []:
+            p.unlink()
+        if (d / FINALS).exists():
+            (d / FINALS).rmdir()
+    return d / TABLE
+
+
+def _final_target(d: Path, garment) -> np.ndarray:
+    from .sweep import SweepSettings, _stage_target
+
+    return _stage_target(SweepSettings(**json.loads((d / "settings.json").read_text())), d, garment)
+
+
+def load_table(table_dir: str | Path) -> Table:
+    """Load one scenario table directory (clear errors for missing or broken files)."""
+    d = Path(table_dir)
+    if not (d / TABLE).is_file():
+        raise FileNotFoundError(f"no lookup table at {d / TABLE}")
+    try:
+        prov = json.loads((d / PROVENANCE).read_text())
+        with open(d / TABLE, newline="") as f:
+            rows = list(csv.DictReader(f))
+        if not rows:
+            raise ValueError("no rows")
+        feats = {k: float(rows[0][k]) for k in FEATURE_NAMES}
+        return Table(
+            name=rows[0]["scenario"], features=feats,
+            point=np.array([int(r["point"]) for r in rows]),
+            height_ratio=np.array([float(r["height_ratio"]) for r in rows]),
+            tilt_deg=np.array([float(r["tilt_deg"]) for r in rows]),
+            loss=np.array([float(r["loss_m"]) for r in rows]),
+            success=np.array([r["success"] == "1" for r in rows]),
+            reason=[r["reason"] for r in rows], provenance=prov)
+    except (OSError, KeyError, ValueError, json.JSONDecodeError) as err:
+        raise ValueError(f"broken lookup table in {d}: {type(err).__name__}: {err}") from err
+
+
+def load_tables(root: str | Path) -> dict[str, Table]:
+    """All scenario tables under `root` (each sub-directory with a table.csv)."""
+    r = Path(root)
+    if not r.is_dir():
+        raise FileNotFoundError(f"lookup table directory {r} does not exist")
+    tables = {t.name: t for t in (load_table(p.parent) for p in sorted(r.glob(f"*/{TABLE}")))}
+    if not tables:
+        raise FileNotFoundError(f"no lookup tables (*/{TABLE}) under {r}")
+    return tables
