@@ -7,11 +7,11 @@ from .definitions import MessageDefinition, message_definition, type_hash
 from .errors import BagError
 from .info import bag_info
 from .layout import TopicInfo
-from .qos import Qos, dump_qos, parse_qos, playback_qos
+from .qos import Qos, dump_qos, from_profile, parse_qos, playback_qos
 from .reader import BagMessage, BagReader
 from .recover import RecoveryReport, recover
 from .writer import BagWriter
 
 __all__ = ["BagError", "BagMessage", "BagReader", "BagWriter", "MessageDefinition", "Qos", "RecoveryReport",
-           "TopicInfo", "bag_info", "dump_qos", "message_definition", "parse_qos", "playback_qos", "recover",
+           "TopicInfo", "bag_info", "dump_qos", "from_profile", "message_definition", "parse_qos", "playback_qos", "recover",
            "type_hash"]

@@ -126,3 +126,20 @@ def playback_qos(offers: list[Qos], default_depth: int = 100) -> Qos:
         depth = 1 if latched else default_depth
     return Qos(history="keep_last", depth=depth, reliability="reliable" if reliable else "best_effort",
                durability="transient_local" if latched else "volatile")
+
+
+def from_profile(profile: object) -> Qos:
+    """Qos from an ``rclpy.qos.QoSProfile``-like object (duck-typed; this module never imports rclpy).
+
+    Enum members are read by ``.name`` (e.g. KEEP_LAST), durations by ``.nanoseconds``.
+    """
+    def name(attr: str) -> str:
+        return str(getattr(getattr(profile, attr), "name", getattr(profile, attr))).lower()
+
+    def ns(attr: str) -> int:
+        return int(getattr(getattr(profile, attr), "nanoseconds", 0))
+
+    return Qos(history=name("history"), depth=int(getattr(profile, "depth", 0) or 0), reliability=name("reliability"),
+               durability=name("durability"), deadline_ns=ns("deadline"), lifespan_ns=ns("lifespan"),
+               liveliness=name("liveliness"), liveliness_lease_ns=ns("liveliness_lease_duration"),
+               avoid_ros_namespace_conventions=bool(getattr(profile, "avoid_ros_namespace_conventions", False)))

@@ -35,6 +35,7 @@ try:  # zstandard.ZstdError is not a ValueError
 except ImportError:  # pragma: no cover
     pass
 
+MAGIC = b"\x89MCAP0\r\n"
 RECOVER_HINT = "run `clothfold bag recover BAG -o FIXED.mcap` to salvage its complete chunks"
 
 
@@ -94,6 +95,16 @@ class _File:
         except OSError as err:
             raise BagError(f"cannot open {path}: {err.strerror}") from None
         self.size = path.stat().st_size
+        head = self.stream.read(8)
+        if head != MAGIC:
+            self.stream.close()
+            raise BagError(f"{path}: not an MCAP file (bad magic {head[:8]!r})")
+        self.stream.seek(max(0, self.size - 8))
+        if self.size < 16 or self.stream.read(8) != MAGIC:
+            self.stream.close()
+            raise BagError(f"{path}: truncated, it has no footer (the recorder was killed or is still running); "
+                           f"{RECOVER_HINT}")
+        self.stream.seek(0)
         with _damage_as_bag_error(path, "reading the header"):
             self.reader = make_reader(self.stream)
             header = self.reader.get_header()

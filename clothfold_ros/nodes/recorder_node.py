@@ -1,0 +1,161 @@
+"""recorder_node: record ROS 2 topics (serialized CDR) into one MCAP bag in the rosbag2 layout.
+
+Usage: ``recorder_node --output PATH [--topics T1 T2 ...] [--exclude REGEX] [--include-hidden]
+[--ros-args ...]``. Records every topic (default) or the given ones; new topics are
+discovered every ``--discovery-period`` s. Each topic is subscribed with ``raw=True`` and
+a QoS compatible with its publishers (transient_local when all of them offer it, best
+effort when any is best effort); the publishers' offered QoS and type hash are stored.
+Prints ``recording to PATH`` (flushed) once ready and ``bag closed: PATH (N messages)``
+after SIGINT/SIGTERM; a SIGKILL loses at most the last ~``--chunk-age`` s (see
+``clothfold bag recover``). Topics that cannot be recorded are listed, never dropped silently.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import re
+import sys
+import time
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.utilities import remove_ros_args
+
+from ..bag import BagError, BagWriter, from_profile, message_definition
+from .common import run
+
+SUBSCRIBE_DEPTH = 1000  # queue of received, not yet written messages per topic
+
+
+def message_class(type_name: str) -> Any:
+    """Python class of ``pkg/msg/Type`` (ImportError/AttributeError if its package is not built)."""
+    pkg, kind, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
+
+
+def is_hidden(topic: str) -> bool:
+    """True for hidden topics (a name component starting with '_', e.g. action internals)."""
+    return any(part.startswith("_") for part in topic.split("/"))
+
+
+def subscription_qos(offers: list[QoSProfile]) -> QoSProfile:
+    """A subscription QoS that matches every offer (and gets latched data when all are latched)."""
+    best_effort = any(o.reliability == ReliabilityPolicy.BEST_EFFORT for o in offers)
+    latched = bool(offers) and all(o.durability == DurabilityPolicy.TRANSIENT_LOCAL for o in offers)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=SUBSCRIBE_DEPTH,
+                      reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+
+
+class RecorderNode(Node):
+    """Discovers topics, subscribes raw and writes every message to a BagWriter."""
+
+    def __init__(self, output: str, topics: list[str] | None = None, exclude: str | None = None,
+                 include_hidden: bool = False, discovery_period: float = 0.5, chunk_age: float = 1.0) -> None:
+        super().__init__("clothfold_recorder")
+        self.output = output
+        self.wanted = None if not topics else {t if t.startswith("/") else "/" + t for t in topics}
+        self.exclude = re.compile(exclude) if exclude else None
+        self.include_hidden = include_hidden
+        self.writer = BagWriter(output, overwrite=True, max_chunk_age=chunk_age)
+        self.subs: dict[str, Any] = {}
+        self.skipped: dict[str, str] = {}  # topic -> reason it is not recorded
+        self.discover()
+        self.create_timer(discovery_period, self.discover)
+        self.create_timer(max(0.05, chunk_age / 4), self.writer.flush_if_due)
+        print(f"recording to {output}", flush=True)
+
+    # -- discovery ----------------------------------------------------------------------
+    def _selected(self, topic: str) -> bool:
+        if self.wanted is not None:
+            return topic in self.wanted
+        if not self.include_hidden and is_hidden(topic):
+            return False
+        return not (self.exclude and self.exclude.search(topic))
+
+    def discover(self) -> None:
+        """Subscribe to every selected topic that has publishers and is not handled yet."""
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.subs or topic in self.skipped or not self._selected(topic):
+                continue
+            if len(types) != 1:
+                self._skip(topic, f"has {len(types)} types ({', '.join(types)})")
+                continue
+            offers = [i.qos_profile for i in self.get_publishers_info_by_topic(topic)]
+            if not offers:
+                continue  # only subscribers so far: wait for a publisher
+            try:
+                cls = message_class(types[0])
+                message_definition(types[0])
+            except (ImportError, AttributeError, ValueError) as err:
+                self._skip(topic, f"type {types[0]} is not importable ({err})")
+                continue
+            except BagError as err:
+                self._skip(topic, str(err))
+                continue
+            self.subs[topic] = self.create_subscription(
+                cls, topic, lambda data, info, t=topic, ty=types[0]: self._on_message(t, ty, data, info),
+                subscription_qos(offers), raw=True)
+            self.get_logger().info(f"recording {topic} ({types[0]})")
+
+    def _skip(self, topic: str, reason: str) -> None:
+        self.skipped[topic] = reason
+        self.get_logger().warning(f"not recording {topic}: {reason}")
+
+    # -- messages -----------------------------------------------------------------------
+    def _on_message(self, topic: str, type_name: str, data: bytes, info: dict) -> None:
+        log_ns = int(info.get("received_timestamp") or 0) or time.time_ns()
+        pub_ns = int(info.get("source_timestamp") or 0) or log_ns
+        if topic not in self.writer.topics:  # channel at first message: offers of publishers known by now
+            pubs = self.get_publishers_info_by_topic(topic)
+            type_hash = message_definition(type_name).type_hash
+            if not type_hash and pubs:
+                type_hash = str(pubs[0].topic_type_hash)
+            self.writer.add_topic(topic, type_name, [from_profile(p.qos_profile) for p in pubs], type_hash=type_hash,
+                                  definition=message_definition(type_name).text)
+        self.writer.write(topic, data, log_ns, pub_ns)
+
+    def destroy_node(self) -> None:
+        """Close the bag (complete file with summary) and report."""
+        if not self.writer.closed:
+            self.writer.close()
+            for topic, reason in sorted(self.skipped.items()):
+                print(f"recorder: skipped {topic}: {reason}", file=sys.stderr, flush=True)
+            if self.wanted:
+                for topic in sorted(self.wanted - set(self.writer.topics)):
+                    print(f"recorder: no messages on {topic}", file=sys.stderr, flush=True)
+            print(f"bag closed: {self.output} ({self.writer.message_count} messages)", flush=True)
+        super().destroy_node()
+
+
+def build_parser(prog: str = "recorder_node") -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=prog, description="Record ROS 2 topics into one MCAP bag (rosbag2 layout).")
+    p.add_argument("--output", "-o", required=True, help="bag path: x.mcap (single file) or a bag directory")
+    p.add_argument("--topics", nargs="*", default=None, help="topics to record (default: all)")
+    p.add_argument("--exclude", default=None, help="regex: do not record matching topics")
+    p.add_argument("--include-hidden", action="store_true", help="also record hidden topics (e.g. /x/_action/...)")
+    p.add_argument("--discovery-period", type=float, default=0.5, help="topic discovery period (s)")
+    p.add_argument("--chunk-age", type=float, default=1.0, help="max age of unwritten data (s), bounds kill loss")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    full = list(sys.argv if argv is None else ["recorder_node", *argv])
+    args = build_parser().parse_args(remove_ros_args(full)[1:])
+    if args.exclude:
+        try:
+            re.compile(args.exclude)
+        except re.error as err:
+            print(f"recorder_node: bad --exclude regex: {err}", file=sys.stderr)
+            return 2
+
+    def recorder_node() -> RecorderNode:
+        return RecorderNode(args.output, args.topics, args.exclude, args.include_hidden, args.discovery_period,
+                            args.chunk_age)
+
+    return run(recorder_node, full)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
