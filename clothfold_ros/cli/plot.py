@@ -1,0 +1,34 @@
+"""`clothfold plot`: a scenario table's loss landscape and best / worst final states (PNG)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("plot", help="PNG loss landscape (fan layout) and best/worst final cloth of lookup tables")
+    p.add_argument("scenarios", nargs="*", help="scenario names (default: every table under --tables)")
+    p.add_argument("--tables", type=Path, default=Path("config/tables"), help="tables root")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default: each table's own folder)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..lookup.plot import plot_best_worst, plot_landscape
+
+    names = args.scenarios or sorted(p.parent.name for p in args.tables.glob("*/table.csv"))
+    if not names:
+        print(f"clothfold plot: no tables under {args.tables}", file=sys.stderr)
+        return 2
+    rc = 0
+    for n in names:
+        d = args.tables / n
+        out = args.out / n if args.out else d
+        try:
+            print(plot_landscape(d, out / "landscape.png"))
+            print(plot_best_worst(d, out / "best_worst.png"))
+        except (FileNotFoundError, ValueError) as err:
+            print(f"clothfold plot: {n}: {err}", file=sys.stderr)
+            rc = 1
+    return rc

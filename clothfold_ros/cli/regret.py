@@ -1,0 +1,31 @@
+"""`clothfold regret`: leave-one-scenario-out evaluation of the table selection."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("regret", help="leave-one-scenario-out regret of the lookup selection")
+    p.add_argument("--tables", type=Path, default=Path("config/tables"), help="tables root")
+    p.add_argument("--out", type=Path, default=None, help="also write the Markdown report here")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..lookup.regret import evaluate, report
+    from ..lookup.table import load_tables
+
+    try:
+        tables = load_tables(args.tables)
+        text = (report(evaluate(tables, robust=True), "robust (neighbourhood-smoothed) selection") + "\n\n"
+                + report(evaluate(tables, robust=False), "raw argmin of the nearest table (comparison)"))
+    except (FileNotFoundError, ValueError) as err:
+        print(f"clothfold regret: {err}", file=sys.stderr)
+        return 2
+    print(text)
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(text + "\n")
+    return 0

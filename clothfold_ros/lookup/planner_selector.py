@@ -1,0 +1,65 @@
+"""The lookup the fold planner node plugs in: observed scenario -> (height ratio, tilt)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from .scenario import STAGE_OF_FOLD, features
+from .select import choose
+from .table import load_tables
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The chosen trajectory parameters; expected_loss in m (neighbourhood-smoothed)."""
+
+    height_ratio: float
+    tilt_deg: float
+    scenario: str
+    expected_loss: float
+    note: str
+
+
+class TableSelector:
+    """Loads every scenario table under `table_dir` (e.g. config/tables) once and picks
+    robustly from the nearest scenario(s) (docs/lookup.md)."""
+
+    def __init__(self, table_dir: str | Path) -> None:
+        self.table_dir = Path(table_dir)
+        try:
+            self.tables = load_tables(self.table_dir)
+        except FileNotFoundError as err:
+            raise FileNotFoundError(f"TableSelector: {err}; generate them with "
+                                    f"scripts/generate_lookup_tables.sh") from err
+        except ValueError as err:
+            raise ValueError(f"TableSelector: {err}") from err
+        for name, t in self.tables.items():
+            if not t.success.any():
+                raise ValueError(f"TableSelector: table {name!r} in {self.table_dir} has no successful run")
+
+    def select(self, *, fold_name: str, keypoints: Mapping[str, np.ndarray], material: str, friction: float,
+               duration: float, stage: int) -> Selection:
+        """Choose for fold `fold_name` of the shirt seen with `keypoints` (name -> (3,) m).
+
+        stage: index of the fold in FOLD_SEQUENCE (0 left sleeve ... 4 middle); it is
+        mapped to the table stage group (STAGE_OF_FOLD). Raises ValueError for unknown
+        folds/materials or keypoints that define no fold.
+        """
+        from ..folding import FOLD_SEQUENCE
+
+        if not (isinstance(stage, (int, np.integer)) and 0 <= stage < len(FOLD_SEQUENCE)):
+            raise ValueError(f"stage must be a FOLD_SEQUENCE index 0..{len(FOLD_SEQUENCE) - 1}, got {stage!r}")
+        group = STAGE_OF_FOLD[FOLD_SEQUENCE[int(stage)]]
+        feats = features(fold_name=fold_name, keypoints=keypoints, material_name=material, friction=friction,
+                         duration=duration, stage=group)
+        c = choose(self.tables, feats)
+        t = self.tables[c.scenarios[0]]
+        raw = "failed there" if math.isnan(c.raw_loss) else f"{c.raw_loss * 1e3:.1f} mm"
+        note = (f"fan point {c.point} from {', '.join(f'{n} (d={d:.2f})' for n, d in zip(c.scenarios, c.distances))}; "
+                f"smoothed loss {c.expected_loss * 1e3:.1f} mm, simulated {raw}; "
+                f"table max_area {t.provenance.get('resolution', {}).get('max_area_m2')} m^2")
+        return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note)
