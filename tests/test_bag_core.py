@@ -1,0 +1,262 @@
+"""Bag core: definitions, QoS, writer layout, read-back with the independent `rosbags` decoder."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from mcap.reader import make_reader
+from rclpy.serialization import serialize_message
+from rosbags.rosbag2 import Reader as RosbagsReader
+from rosbags.rosbag2.metadata import parse_qos as rosbags_parse_qos
+from rosbags.rosbag2.storage_mcap import McapReader as RosbagsMcap
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from clothfold_ros.bag import BagError, BagReader, BagWriter, Qos, dump_qos, message_definition, parse_qos
+from clothfold_ros.bag.definitions import SEPARATOR
+from clothfold_ros.bag.playback import PlaybackClock
+
+T0 = 1_700_000_000_000_000_000  # ns
+
+
+def _messages():
+    """(topic, type, rclpy message) for a mix of pipeline types, deterministic values."""
+    from builtin_interfaces.msg import Time
+    from clothfold_msgs.msg import ClothState, FoldSpec, Keypoints
+    from geometry_msgs.msg import Point, Pose, PoseStamped, Vector3
+    from nav_msgs.msg import Path as PathMsg
+    from sensor_msgs.msg import PointCloud2, PointField
+    from std_msgs.msg import Float64MultiArray, String
+    from visualization_msgs.msg import Marker
+
+    rng = np.random.default_rng(7)
+    out = []
+    for i in range(30):
+        p = PoseStamped()
+        p.header.stamp = Time(sec=100 + i, nanosec=5 * i)
+        p.header.frame_id = "table"
+        p.pose.position.x, p.pose.position.y, p.pose.position.z = (float(v) for v in rng.normal(size=3))
+        p.pose.orientation.w = 1.0
+        out.append(("/gripper_0/target_pose", "geometry_msgs/msg/PoseStamped", p))
+    path = PathMsg()
+    path.header.frame_id = "table"
+    for i in range(5):
+        ps = PoseStamped()
+        ps.pose.position.x = 0.1 * i
+        path.poses.append(ps)
+    out.append(("/gripper_0/path", "nav_msgs/msg/Path", path))
+    mk = Marker(ns="cloth", id=3, type=Marker.TRIANGLE_LIST, action=Marker.ADD)
+    mk.points = [Point(x=float(i), y=-float(i), z=0.5) for i in range(6)]
+    mk.scale = Vector3(x=1.0, y=1.0, z=1.0)
+    out.append(("/cloth/marker", "visualization_msgs/msg/Marker", mk))
+    pts = rng.normal(size=(40, 3)).astype(np.float32)
+    pc = PointCloud2(height=1, width=40, is_bigendian=False, point_step=12, row_step=480, is_dense=True)
+    pc.fields = [PointField(name=n, offset=4 * k, datatype=PointField.FLOAT32, count=1) for k, n in enumerate("xyz")]
+    pc.data = pts.tobytes()
+    out.append(("/cloth/points", "sensor_msgs/msg/PointCloud2", pc))
+    kp = Keypoints(names=["bottom_right", "neck_middle"], points=[Point(x=0.3, y=-0.2), Point(y=0.35)],
+                   vertex_ids=[12, -1])
+    out.append(("/keypoints", "clothfold_msgs/msg/Keypoints", kp))
+    fs = FoldSpec(fold_name="left_sleeve", stage=2, line_point=Point(x=0.1), line_direction=Vector3(y=1.0),
+                  start_poses=[Pose(position=Point(x=0.2, z=0.01))], end_poses=[Pose(position=Point(x=-0.2))],
+                  tilt_signs=[1.0], height_ratio=0.45, tilt_deg=51.4, duration=4.0, settle_time=0.2,
+                  layer_offset_factor=2.0)
+    out.append(("/fold/spec", "clothfold_msgs/msg/FoldSpec", fs))
+    cs = ClothState(positions=rng.normal(size=30).astype(np.float32).tolist(), triangles=list(range(9)),
+                    keypoint_names=["a"], keypoint_vertex_ids=[4], thickness=0.001, grasped_vertex_ids=[1, 2])
+    out.append(("/cloth/state", "clothfold_msgs/msg/ClothState", cs))
+    out.append(("/note", "std_msgs/msg/String", String(data="héllo")))
+    out.append(("/arr", "std_msgs/msg/Float64MultiArray", Float64MultiArray(data=[1.5, -2.0])))
+    return out
+
+
+LATCHED = Qos(depth=1, durability="transient_local")
+
+
+def _write(path: Path, chunk_size: int = 1500) -> list[tuple[str, str, object, int]]:
+    written = []
+    with BagWriter(path, chunk_size=chunk_size) as w:
+        for k, (topic, typ, msg) in enumerate(_messages()):
+            qos = [LATCHED] if topic in ("/keypoints", "/fold/spec") else [Qos(depth=1000), Qos(depth=5)]
+            w.add_topic(topic, typ, qos)
+            t = T0 + 10_000_000 * k
+            w.write(topic, serialize_message(msg), t, t - 1000)
+            written.append((topic, typ, msg, t))
+    return written
+
+
+def _ros_value(v):
+    """Comparable value of an rclpy message field (recursive)."""
+    if hasattr(v, "get_fields_and_field_types"):
+        return {f: _ros_value(getattr(v, f)) for f in v.get_fields_and_field_types()}
+    if isinstance(v, (list, tuple)) or hasattr(v, "tolist"):
+        return [_ros_value(x) for x in (v.tolist() if hasattr(v, "tolist") else v)]
+    if isinstance(v, (bytes, bytearray)):
+        return list(v)
+    return v
+
+
+def _rb_value(v):
+    """Comparable value of a rosbags-decoded message (recursive)."""
+    if dataclasses.is_dataclass(v):  # constants (UPPER_CASE) are not fields of the rclpy message
+        return {f.name: _rb_value(getattr(v, f.name)) for f in dataclasses.fields(v)
+                if f.name != "__msgtype__" and not f.name.isupper()}
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (list, tuple)):
+        return [_rb_value(x) for x in v]
+    return v
+
+
+def _decode_all_with_rosbags(path: Path):
+    """Decode every message of a single .mcap with an EMPTY type store + the bag's definitions."""
+    store = get_typestore(Stores.EMPTY)
+    reader = RosbagsMcap(path)
+    reader.open()
+    try:
+        for c in reader.connections:
+            store.register(get_types_from_msg(c.msgdef.data, c.msgtype))
+        return [(c.topic, t, _rb_value(store.deserialize_cdr(raw, c.msgtype)))
+                for c, t, raw in reader.messages(reader.connections)]
+    finally:
+        reader.close()
+
+
+def test_definition_layout_matches_rosbag2():
+    d = message_definition("nav_msgs/msg/Path")
+    blocks = d.text.split("\n" + SEPARATOR + "\n")
+    heads = [b.splitlines()[0] for b in blocks[1:]]
+    assert heads == ["MSG: std_msgs/Header", "MSG: builtin_interfaces/Time", "MSG: geometry_msgs/PoseStamped",
+                     "MSG: geometry_msgs/Pose", "MSG: geometry_msgs/Point", "MSG: geometry_msgs/Quaternion"]
+    assert "/msg/" not in "".join(heads)
+    assert len(SEPARATOR) == 80 and set(SEPARATOR) == {"="}
+    share = Path(os.environ["AMENT_PREFIX_PATH"].split(":")[-1]) / "share"
+    assert blocks[0] == (share / "nav_msgs/msg/Path.msg").read_text().rstrip("\n")
+    desc = json.loads((share / "nav_msgs/msg/Path.json").read_text())
+    assert d.type_hash == desc["type_hashes"][0]["hash_string"]
+    assert d.type_hash.startswith("RIHS01_") and len(d.type_hash) == 7 + 64
+    assert message_definition("nav_msgs/Path") == d
+
+
+def test_definition_errors_are_clear():
+    with pytest.raises(BagError, match="no nosuch_msgs/msg/Thing.msg"):
+        message_definition("nosuch_msgs/msg/Thing")
+    with pytest.raises(BagError, match="bad ROS type name"):
+        message_definition("justaname")
+
+
+def test_qos_yaml_roundtrip_and_rosbags_agrees():
+    offers = [Qos(depth=1, durability="transient_local"), Qos(history="unknown", depth=0, reliability="best_effort",
+                                                             deadline_ns=1_500_000_000)]
+    text = dump_qos(offers)
+    assert parse_qos(text) == offers
+    items = yaml.safe_load(text)
+    assert all(list(i) == ["history", "depth", "reliability", "durability", "deadline", "lifespan", "liveliness",
+                           "liveliness_lease_duration", "avoid_ros_namespace_conventions"] for i in items)
+    assert items[0]["lifespan"] == {"sec": 9223372036, "nsec": 854775807}
+    theirs = rosbags_parse_qos(text)
+    assert [q.durability.name.lower() for q in theirs] == ["transient_local", "volatile"]
+    assert [q.reliability.name.lower() for q in theirs] == ["reliable", "best_effort"]
+    assert (theirs[1].deadline.sec, theirs[1].deadline.nsec) == (1, 500_000_000)
+    with pytest.raises(BagError):
+        parse_qos("- history: sometimes\n  depth: 1")
+    with pytest.raises(BagError):
+        Qos(durability="sticky")
+
+
+def test_rosbags_decodes_every_message_with_empty_typestore(tmp_path):
+    path = tmp_path / "mix.mcap"
+    written = _write(path)
+    decoded = _decode_all_with_rosbags(path)
+    assert len(decoded) == len(written)
+    by_time = {t: (topic, v) for topic, t, v in decoded}
+    for topic, _, msg, t in written:
+        got_topic, got = by_time[t]
+        assert got_topic == topic
+        assert got == _ros_value(msg), topic
+
+
+def test_mcap_layout_schema_qos_hash_metadata(tmp_path):
+    path = tmp_path / "mix.mcap"
+    written = _write(path, chunk_size=800)
+    with open(path, "rb") as f:
+        r = make_reader(f)
+        assert r.get_header().profile == "ros2"
+        s = r.get_summary()
+        assert s.statistics.message_count == len(written)
+        assert s.statistics.chunk_count > 3
+        assert len(s.chunk_indexes) == s.statistics.chunk_count
+        for ch in s.channels.values():
+            schema = s.schemas[ch.schema_id]
+            assert ch.message_encoding == "cdr" and schema.encoding == "ros2msg"
+            assert schema.data.decode() == message_definition(schema.name).text
+            assert ch.metadata["topic_type_hash"] == message_definition(schema.name).type_hash
+            offers = yaml.safe_load(ch.metadata["offered_qos_profiles"])
+            want = "transient_local" if ch.topic in ("/keypoints", "/fold/spec") else "volatile"
+            assert [o["durability"] for o in offers][0] == want
+        meta = {m.name: m.metadata for m in r.iter_metadata()}
+        info = yaml.safe_load(meta["rosbag2"]["serialized_metadata"])["rosbag2_bagfile_information"]
+    assert info["version"] == 9 and info["storage_identifier"] == "mcap"
+    assert info["message_count"] == len(written)
+    assert info["starting_time"]["nanoseconds_since_epoch"] == written[0][3]
+    assert info["duration"]["nanoseconds"] == written[-1][3] - written[0][3]
+    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
+    assert counts["/gripper_0/target_pose"] == 30 and sum(counts.values()) == len(written)
+
+
+def test_bag_directory_with_metadata_yaml_opens_in_rosbags_reader(tmp_path):
+    bagdir = tmp_path / "run1"
+    written = _write(bagdir)
+    assert (bagdir / "metadata.yaml").is_file() and (bagdir / "run1_0.mcap").is_file()
+    with RosbagsReader(bagdir) as r:
+        assert r.message_count == len(written)
+        latched = [c for c in r.connections if c.topic == "/keypoints"][0]
+        assert latched.ext.offered_qos_profiles[0].durability.name == "TRANSIENT_LOCAL"
+        assert latched.digest == message_definition("clothfold_msgs/msg/Keypoints").type_hash
+        assert sorted(c.topic for c in r.connections) == sorted({w[0] for w in written})
+    with BagReader(bagdir) as b:
+        assert b.message_count == len(written)
+
+
+def test_own_reader_time_order_filter_and_bytes(tmp_path):
+    path = tmp_path / "mix.mcap"
+    written = _write(path)
+    with BagReader(path) as b:
+        msgs = list(b.messages())
+        assert [m.log_time_ns for m in msgs] == sorted(w[3] for w in written)
+        assert [m.data for m in msgs] == [serialize_message(w[2]) for w in written]
+        assert all(m.publish_time_ns == m.log_time_ns - 1000 for m in msgs)
+        poses = list(b.messages(topics=["/gripper_0/target_pose"], start_ns=T0 + 10_000_000 * 10))
+        assert len(poses) == 20
+        assert b.topics["/keypoints"].offered_qos == [LATCHED]
+        assert b.duration_ns == written[-1][3] - T0
+        with pytest.raises(BagError, match="no topic /nope"):
+            list(b.messages(topics=["/nope"]))
+
+
+def test_writer_rejects_bad_input(tmp_path):
+    path = tmp_path / "x.mcap"
+    with BagWriter(path) as w:
+        w.add_topic("/a", "std_msgs/msg/String")
+        with pytest.raises(BagError, match="not added"):
+            w.write("/b", b"", T0)
+        with pytest.raises(BagError, match="already recorded as"):
+            w.add_topic("/a", "std_msgs/msg/Int32")
+        with pytest.raises(BagError, match="absolute"):
+            w.add_topic("a", "std_msgs/msg/String")
+    with pytest.raises(BagError, match="exists"):
+        BagWriter(path)
+    with pytest.raises(BagError, match="closed"):
+        w.write("/a", b"", T0)
+
+
+def test_playback_clock_rate():
+    c = PlaybackClock(bag_start_ns=T0, wall_start=10.0, rate=2.0)
+    assert c.due(T0 + 3_000_000_000) == pytest.approx(11.5)
+    assert c.bag_time_ns(11.5) == T0 + 3_000_000_000
+    with pytest.raises(ValueError):
+        PlaybackClock(T0, 0.0, rate=0.0)
