@@ -39,6 +39,7 @@ class ContactModel:
         self.mu = float(friction)
         self.dt = float(dt)
         self.friction = ipctk.FrictionPotential(eps_v * dt)  # acts on displacements
+        self.narrow_phase = ipctk.AdditiveCCD()
         self.kappa = 0.0
         self.kappa_max = 0.0
         self.barrier = ipctk.BarrierPotential(self.barrier_dhat, 1.0)
@@ -144,14 +145,18 @@ class ContactModel:
     def max_step(self, x0: np.ndarray, x1: np.ndarray, candidates: ipctk.Candidates | None = None) -> float:
         """Largest collision-free fraction of the linear move x0 -> x1 (keeps xi apart).
 
-        ipctk's CCD covers self-contact; the table plane is checked here in closed form
-        (ipctk's step-size query does not look at mesh planes).
+        ipctk's CCD covers self-contact with additive CCD (ACCD, the CCD of C-IPC; the
+        default tight-inclusion CCD with a minimum distance returns uncertified tiny
+        steps for nearly parallel edge pairs, which stalls Newton); the table plane is
+        checked here in closed form (ipctk's step-size query does not look at planes).
         """
         a, b = np.asfortranarray(x0), np.asfortranarray(x1)
         if candidates is None:
-            self_ccd = ipctk.compute_collision_free_stepsize(self.mesh, a, b, min_distance=self.ccd_min_distance)
-        else:
-            self_ccd = candidates.compute_collision_free_stepsize(self.mesh, a, b, min_distance=self.ccd_min_distance)
+            candidates = ipctk.Candidates()
+            candidates.build(self.mesh, a, b, self.barrier_dhat + self.barrier_dmin)
+        self_ccd = candidates.compute_collision_free_stepsize(
+            self.mesh, a, b, min_distance=self.ccd_min_distance, narrow_phase_ccd=self.narrow_phase
+        )
         return min(float(self_ccd), self.table_step(x0[:, 2], x1[:, 2]))
 
     def table_step(self, z0: np.ndarray, z1: np.ndarray) -> float:
