@@ -106,7 +106,7 @@ class _File:
                            f"{RECOVER_HINT}")
         self.stream.seek(0)
         with _damage_as_bag_error(path, "reading the header"):
-            self.reader = make_reader(self.stream)
+            self.reader = make_reader(self.stream, validate_crcs=True)
             header = self.reader.get_header()
         if header.profile != layout.PROFILE:
             raise BagError(f"{path}: MCAP profile {header.profile!r} is not a ROS 2 bag (expected 'ros2')")

@@ -100,8 +100,9 @@ def recover(source: str | os.PathLike, output: str | os.PathLike, overwrite: boo
             if isinstance(record, (DataEnd, Footer)):
                 report.complete = True
                 break
-        if good == 0 and not kept and not channels:
-            raise BagError(f"{src}: nothing recoverable ({report.reason or 'empty file'})")
+        if not kept and not report.complete:
+            raise BagError(f"{src}: nothing recoverable, no complete chunk "
+                           f"({report.reason or 'empty file'})")
     report.bytes_read = good
     report.bytes_lost = 0 if report.complete else size - good
     _write(dst, schemas, channels, kept, report, overwrite)
@@ -109,7 +110,9 @@ def recover(source: str | os.PathLike, output: str | os.PathLike, overwrite: boo
 
 
 def _reason(err: BaseException, size: int, offset: int) -> str:
-    if type(err).__name__ == "EndOfFile" or isinstance(err, EOFError):
+    if type(err).__name__ in ("EndOfFile", "RecordLengthLimitExceeded") or isinstance(err, EOFError):
+        if offset >= size:
+            return f"file ends at byte {size} without a summary (truncated)"
         return f"file ends inside a record at byte {offset}..{size} (truncated)"
     return f"damaged record after byte {offset}: {type(err).__name__}: {err}".rstrip(": ")
 

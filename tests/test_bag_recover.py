@@ -1,0 +1,135 @@
+"""Truncated and corrupt bags: clear BagErrors, recovery up to the last complete chunk."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+from rclpy.serialization import serialize_message
+from std_msgs.msg import Int32
+
+from clothfold_ros.bag import BagError, BagReader, BagWriter, Qos, recover
+
+T0 = 1_700_000_000_000_000_000
+N = 400
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory) -> Path:
+    """A bag of N Int32 (value i at T0 + i ms) with small chunks, plus its chunk index."""
+    path = tmp_path_factory.mktemp("rec") / "full.mcap"
+    with BagWriter(path, chunk_size=600, max_chunk_age=None) as w:
+        w.add_topic("/count", "std_msgs/msg/Int32", [Qos(depth=7, durability="transient_local")])
+        w.add_topic("/other", "std_msgs/msg/Int32")
+        for i in range(N):
+            w.write("/count" if i % 4 else "/other", serialize_message(Int32(data=i)), T0 + i * 1_000_000)
+    return path
+
+
+def _chunks(path: Path):
+    """[(start offset, end offset, message count)] of the chunk records, in file order."""
+    with open(path, "rb") as f:
+        s = make_reader(f).get_summary()
+    out = []
+    for ci in sorted(s.chunk_indexes, key=lambda c: c.chunk_start_offset):
+        with open(path, "rb") as f:
+            n = sum(1 for _ in make_reader(f).iter_messages(starting_at=ci.message_start_time,
+                                                             ending_at=ci.message_end_time))
+        out.append((ci.chunk_start_offset, ci.chunk_start_offset + ci.chunk_length, n))
+    return out
+
+
+def _cut(src: Path, dst: Path, size: int) -> Path:
+    dst.write_bytes(src.read_bytes()[:size])
+    return dst
+
+
+def _values(path: Path) -> list[int]:
+    with BagReader(path) as b:
+        return [int.from_bytes(m.data[4:8], "little", signed=True) for m in b.messages()]
+
+
+@pytest.mark.parametrize("which,where", [(3, 0.5), (10, 0.1), (10, 0.99), (0, 0.5), (7, 1.0)])
+def test_recover_keeps_exactly_the_complete_chunks(bag, tmp_path, which, where):
+    chunks = _chunks(bag)
+    assert len(chunks) > 12 and sum(c[2] for c in chunks) == N  # message time ranges do not overlap
+    start, end, _ = chunks[which]
+    cut = _cut(bag, tmp_path / "cut.mcap", int(start + where * (end - start)))
+    complete = [c for c in chunks if c[1] <= cut.stat().st_size]
+    expected = sum(c[2] for c in complete)
+    with pytest.raises(BagError, match="truncated"):
+        BagReader(cut)
+    if expected == 0:
+        with pytest.raises(BagError, match="nothing recoverable"):
+            recover(cut, tmp_path / "fixed.mcap")
+        return
+    report = recover(cut, tmp_path / "fixed.mcap")
+    assert "truncated" in report.reason
+    assert report.messages == expected and report.chunks == len(complete)
+    # the kept part ends after the last complete chunk (and its message index records)
+    assert not report.complete and report.bytes_read >= complete[-1][1]
+    assert 0 <= report.bytes_lost <= cut.stat().st_size - complete[-1][1]
+    assert report.bytes_read + report.bytes_lost == cut.stat().st_size
+    assert report.topics == {"/count": sum(1 for i in range(expected) if i % 4),
+                             "/other": sum(1 for i in range(expected) if not i % 4)}
+    assert _values(tmp_path / "fixed.mcap") == list(range(expected))
+    with BagReader(tmp_path / "fixed.mcap") as b:
+        assert b.topics["/count"].offered_qos == [Qos(depth=7, durability="transient_local")]
+        assert b.metadata["message_count"] == expected
+        assert b.metadata["custom_data"]["recovered_from"] == str(cut)
+
+
+def test_recover_complete_bag_loses_nothing(bag, tmp_path):
+    report = recover(bag, tmp_path / "same.mcap")
+    assert report.complete and report.messages == N and report.bytes_lost == 0
+    assert _values(tmp_path / "same.mcap") == list(range(N))
+
+
+def test_corrupt_chunk_gives_bag_error_and_recovery_stops_before_it(bag, tmp_path):
+    chunks = _chunks(bag)
+    data = bytearray(bag.read_bytes())
+    start, end, _ = chunks[5]
+    mid = (start + end) // 2
+    data[mid:mid + 16] = b"\xff" * 16  # damage the compressed payload of chunk 5
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(BagError, match="damaged"):
+        with BagReader(bad) as b:
+            list(b.messages())
+    report = recover(bad, tmp_path / "fixed.mcap")
+    assert report.messages == sum(c[2] for c in chunks[:5])
+    assert "damaged record" in report.reason
+
+
+@pytest.mark.parametrize("content", [b"", b"not a bag at all", b"\x89MCAP0\r\n" + b"\x00" * 3])
+def test_garbage_files_raise_bag_error(tmp_path, content):
+    p = tmp_path / "g.mcap"
+    p.write_bytes(content)
+    with pytest.raises(BagError):
+        BagReader(p)
+    with pytest.raises(BagError):
+        recover(p, tmp_path / "o.mcap")
+
+
+def test_missing_bag_is_a_bag_error(tmp_path):
+    with pytest.raises(BagError, match="no such bag"):
+        BagReader(tmp_path / "nope.mcap")
+
+
+def test_cli_info_and_recover_without_traceback(bag, tmp_path):
+    cut = _cut(bag, tmp_path / "cut.mcap", bag.stat().st_size // 2)
+    cmd = [sys.executable, "-c", "import sys; from clothfold_ros.cli import main; sys.exit(main())"]
+    info = subprocess.run(cmd + ["bag", "info", str(cut)], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert info.returncode == 1 and "Traceback" not in info.stderr
+    assert "truncated" in info.stderr and "clothfold bag recover" in info.stderr
+    fixed = tmp_path / "fixed.mcap"
+    rec = subprocess.run(cmd + ["bag", "recover", str(cut), "-o", str(fixed)], capture_output=True, text=True,
+                         cwd=ROOT, timeout=60)
+    assert rec.returncode == 0, rec.stderr
+    n = len(_values(fixed))
+    assert 0 < n < N and f"recovered {n} messages" in rec.stdout
+    info2 = subprocess.run(cmd + ["bag", "info", str(fixed)], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert info2.returncode == 0 and f"Messages:          {n}" in info2.stdout
