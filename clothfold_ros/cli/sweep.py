@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-newton", type=int, default=80, help="Newton iterations per step before failing")
     p.add_argument("--workers", type=int, default=None, help="local processes (default: number of cores)")
     p.add_argument("--ray", default=None, metavar="ADDRESS",
-                   help="run on Ray: a cluster address, 'auto', or 'local' (Ray local mode)")
+                   help="run on Ray: a cluster address, 'auto', or 'local' (a private single-node Ray here)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 

@@ -271,12 +271,12 @@ def _local(jobs: list[Job], workers: int) -> Iterator[tuple[dict, np.ndarray | N
             yield fut.result()
 
 
-def _ray(jobs: list[Job], address: str) -> Iterator[tuple[dict, np.ndarray | None]]:
+def _ray(jobs: list[Job], address: str, workers: int) -> Iterator[tuple[dict, np.ndarray | None]]:
     import ray
 
     if not ray.is_initialized():
-        if address == "local":
-            ray.init(local_mode=True, include_dashboard=False, log_to_driver=False, num_cpus=1)
+        if address == "local":  # a private single-node Ray on this machine (Ray >= 2.4 has no local_mode)
+            ray.init(num_cpus=max(1, workers), include_dashboard=False, log_to_driver=False)
         else:
             ray.init(address=address, log_to_driver=False)
     remote = ray.remote(run_job)
@@ -318,8 +318,9 @@ def run_sweep(settings: SweepSettings, sweep_dir: str | Path, points: Iterable[i
               on_row: Callable[[dict], None] | None = None) -> list[dict]:
     """Run (or resume) the sweep of `settings.scenario` over fan indices `points` into
     `sweep_dir`; returns the rows finished in this call. ray_address: None = local pool
-    with `workers` processes (default os.cpu_count()), 'local' = Ray local mode, else a
-    Ray cluster address. previous_dir: the sweep directory of the scenario's `after`.
+    with `workers` processes (default: the usable cores), 'local' = a private single-node
+    Ray started here with `workers` CPUs (Ray's local mode is gone since Ray 2.4), else a
+    Ray cluster address ('auto' = the running cluster). previous_dir: the sweep directory of the scenario's `after`.
     """
     d = Path(sweep_dir)
     d.mkdir(parents=True, exist_ok=True)
@@ -341,7 +342,8 @@ def run_sweep(settings: SweepSettings, sweep_dir: str | Path, points: Iterable[i
     todo = pending(d, points)
     jobs = [Job(settings, p, float(f[p, 0]), float(f[p, 1]), start) for p in todo]
     bar = Progress(len(jobs), settings.scenario, progress)
-    it = _ray(jobs, ray_address) if ray_address else _local(jobs, workers or os.cpu_count() or 1)
+    n_workers = workers or len(os.sched_getaffinity(0))
+    it = _ray(jobs, ray_address, n_workers) if ray_address else _local(jobs, n_workers)
     out = []
     for row, final in it:
         _append(d, row, final)

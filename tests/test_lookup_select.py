@@ -1,0 +1,162 @@
+"""Selection, regret, TableSelector and plots on synthetic tables (no simulation)."""
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clothfold_ros.lookup.planner_selector import Selection, TableSelector
+from clothfold_ros.lookup.plot import plot_best_worst, plot_landscape
+from clothfold_ros.lookup.regret import evaluate, mean_regret
+from clothfold_ros.lookup.scenario import (SCENARIOS, definition_features, features, flat_keypoints,
+                                           generation_order, normalized_distance)
+from clothfold_ros.lookup.select import choose, smoothed_loss
+from clothfold_ros.lookup.table import COLUMNS, FEATURE_NAMES, Table
+from clothfold_ros.trajectory import fan
+
+FAN = fan()
+
+
+def _table(name: str, loss: np.ndarray, feats: dict | None = None, points: np.ndarray | None = None) -> Table:
+    p = np.arange(len(FAN)) if points is None else points
+    loss = np.asarray(loss, dtype=float)
+    return Table(name, feats or definition_features(SCENARIOS["shape1"]), p, FAN[p, 0], FAN[p, 1], loss,
+                 np.isfinite(loss), ["" if np.isfinite(x) else "failed" for x in loss], {})
+
+
+def _bowl(centre: int, base: float = 0.02, slope: float = 0.05) -> np.ndarray:
+    """Loss growing with fan-layout distance from fan point `centre`."""
+    xy = np.column_stack([FAN[:, 0] * np.cos(np.radians(FAN[:, 1])), FAN[:, 0] * np.sin(np.radians(FAN[:, 1]))])
+    return base + slope * np.linalg.norm(xy - xy[centre], axis=1)
+
+
+def test_robust_plateau_beats_isolated_optimum() -> None:
+    loss = np.full(len(FAN), 0.040)
+    plateau = np.flatnonzero((FAN[:, 0] > 0.8) & (FAN[:, 1] < 20))  # a broad good region
+    loss[plateau] = 0.006
+    spike = int(np.flatnonzero((np.isclose(FAN[:, 0], 0.3076923)) & (FAN[:, 1] == 30.0))[0])
+    loss[spike] = 0.002  # the sharp optimum ...
+    nb = np.flatnonzero(np.abs(FAN[:, 0] - FAN[spike, 0]) < 0.08)
+    loss[nb[nb != spike]] = np.nan  # ... surrounded by failures
+    t = _table("shape1", loss)
+    raw = choose({"shape1": t}, t.features, robust=False)
+    rob = choose({"shape1": t}, t.features)
+    assert raw.point == spike
+    assert rob.point in set(plateau.tolist())
+    assert rob.expected_loss == pytest.approx(smoothed_loss(t)[rob.point])
+    assert rob.raw_loss == pytest.approx(0.006)
+
+
+def test_failures_count_as_bad() -> None:
+    loss = _bowl(100)
+    loss[100] = np.nan  # the centre itself failed: its neighbours are pulled up
+    t = _table("shape1", loss)
+    assert choose({"shape1": t}, t.features).point != 100
+    assert np.all(np.isfinite(smoothed_loss(t)))
+
+
+def test_nearest_scenario_is_used() -> None:
+    a = _table("shape1", _bowl(20), definition_features(SCENARIOS["shape1"]))
+    b = _table("shape3", _bowl(120), definition_features(SCENARIOS["shape3"]))
+    c = _table("T8", _bowl(60), definition_features(SCENARIOS["T8"]))
+    tables = {t.name: t for t in (a, b, c)}
+    for t, centre in ((a, 20), (b, 120), (c, 60)):
+        ch = choose(tables, t.features, blend_margin=0.0)
+        assert ch.scenarios == (t.name,) and ch.point == centre
+    # a short-sleeved shirt of unseen length is nearest to shape 3
+    kp = flat_keypoints(3, "cotton")
+    f = features(fold_name="left_sleeve", keypoints=kp, material_name="cotton", friction=0.45, duration=4.0)
+    assert choose(tables, f, blend_margin=0.0).scenarios[0] == "shape3"
+    assert normalized_distance(f, b.features) < normalized_distance(f, a.features)
+
+
+def test_regret_arithmetic() -> None:
+    f1, f2 = definition_features(SCENARIOS["shape1"]), definition_features(SCENARIOS["mu0.2"])
+    l1, l2 = _bowl(50), _bowl(80)
+    rows = {r.scenario: r for r in evaluate({"shape1": _table("shape1", l1, f1), "mu0.2": _table("mu0.2", l2, f2)},
+                                            robust=False)}
+    # each held-out scenario gets the other's optimum, evaluated in its own table
+    assert rows["shape1"].point == 80 and rows["mu0.2"].point == 50
+    assert rows["shape1"].regret == pytest.approx(l1[80] - l1.min())
+    assert rows["mu0.2"].regret == pytest.approx(l2[50] - l2.min())
+    assert mean_regret(list(rows.values())) == pytest.approx(((l1[80] - l1.min()) + (l2[50] - l2.min())) / 2)
+    l2f = l2.copy()
+    l2f[50] = np.nan  # the chosen point failed in the held-out table: counted as its worst loss, flagged
+    rows = {r.scenario: r for r in evaluate({"shape1": _table("shape1", l1, f1), "mu0.2": _table("mu0.2", l2f, f2)},
+                                            robust=False)}
+    assert rows["mu0.2"].flag == "failed in held-out"
+    assert rows["mu0.2"].regret == pytest.approx(np.nanmax(l2f) - np.nanmin(l2f))
+
+
+def _write_table_dir(d: Path, t: Table, with_finals: bool = False) -> None:
+    d.mkdir(parents=True)
+    with open(d / "table.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS)
+        w.writeheader()
+        for i in range(len(t.point)):
+            w.writerow({"scenario": t.name, "folds": "left_sleeve", "shape": 1, "material": "cotton",
+                        **{k: t.features[k] for k in FEATURE_NAMES}, "point": t.point[i],
+                        "height_ratio": t.height_ratio[i], "tilt_deg": t.tilt_deg[i], "loss_m": t.loss[i],
+                        "success": int(t.success[i]), "reason": t.reason[i], "wall_time_s": 1.0,
+                        "newton_iterations": 10, "steps": 5, "max_area_m2": 4e-3, "vertices": 3})
+    (d / "provenance.json").write_text(json.dumps({"resolution": {"max_area_m2": 4e-3}}))
+    if with_finals:
+        tri = np.array([[0, 1, 2]])
+        target = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float32)
+        finals = {f"p{p:03d}": target + 0.01 * p for p in t.point}
+        np.savez(d / "finals.npz", triangles=tri, target=target, start=target, **finals)
+
+
+def test_table_selector(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        TableSelector(tmp_path / "nowhere")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileNotFoundError, match="no lookup tables"):
+        TableSelector(tmp_path / "empty")
+    (tmp_path / "broken" / "x").mkdir(parents=True)
+    (tmp_path / "broken" / "x" / "table.csv").write_text("scenario,point\nx,1\n")
+    with pytest.raises(ValueError, match="broken lookup table"):
+        TableSelector(tmp_path / "broken")
+    pts = np.arange(0, 134, 3)
+    _write_table_dir(tmp_path / "ok" / "shape1", _table("shape1", _bowl(66)[pts], points=pts))
+    mid = _table("middle", _bowl(99)[pts], points=pts,
+                 feats={**definition_features(SCENARIOS["shape1"]), "stage": 3.0, "fold_type": 2.0})
+    _write_table_dir(tmp_path / "ok" / "middle", mid)
+    sel = TableSelector(tmp_path / "ok")
+    kp = flat_keypoints(1, "cotton")
+    s = sel.select(fold_name="right_sleeve", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=0)
+    assert isinstance(s, Selection) and s.scenario == "shape1"
+    assert (s.height_ratio, s.tilt_deg) == (FAN[66, 0], FAN[66, 1]) and s.expected_loss > 0 and "66" in s.note
+    s = sel.select(fold_name="middle", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=4)
+    assert s.scenario == "middle" and (s.height_ratio, s.tilt_deg) == (FAN[99, 0], FAN[99, 1])
+    with pytest.raises(ValueError):
+        sel.select(fold_name="collar", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=0)
+    with pytest.raises(ValueError):
+        sel.select(fold_name="left_sleeve", keypoints=kp, material="silk", friction=0.5, duration=4.0, stage=0)
+
+
+def test_plots_write_png(tmp_path: Path) -> None:
+    loss = _bowl(40)[::4]
+    loss[2] = np.nan
+    _write_table_dir(tmp_path / "shape1", _table("shape1", loss, points=np.arange(0, 134, 4)), with_finals=True)
+    for fn, name in ((plot_landscape, "landscape.png"), (plot_best_worst, "best_worst.png")):
+        out = fn(tmp_path / "shape1", tmp_path / "plots" / name)
+        assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 5000
+
+
+def test_scenarios_and_features() -> None:
+    assert len(SCENARIOS) == 13
+    order = generation_order()
+    assert sorted(order) == sorted(SCENARIOS)
+    assert order.index("shape1") < order.index("both_sleeves") < order.index("both_sides") < order.index("middle")
+    f1, f2, f3 = (definition_features(SCENARIOS[f"shape{i}"]) for i in (1, 2, 3))
+    assert f1["sleeve_angle"] == pytest.approx(-3.0) and f2["sleeve_angle"] == pytest.approx(30.0)
+    assert f3["sleeve_length"] < f1["sleeve_length"] == pytest.approx(f2["sleeve_length"])
+    assert f1["sleeve_length"] == pytest.approx(0.76 * 0.635)
+    thin, thick = (definition_features(SCENARIOS[n]) for n in ("thin_cotton", "thick_cotton"))
+    assert normalized_distance(thin, f1) == pytest.approx(1.0) and normalized_distance(thick, f1) == pytest.approx(1.0)
+    assert math.isfinite(f1["grip_distance"]) and f1["grip_distance"] > 0.1
