@@ -158,7 +158,7 @@ class BagWriter:
     def flush(self) -> None:
         """Write the open chunk to disk now (no-op when empty)."""
         self._check_open()
-        self._mcap._Writer__finalize_chunk()  # type: ignore[attr-defined]  # mcap 1.x: no public hook
+        self._mcap.flush()  # finishes the open chunk (with its message indexes) and writes it
         self._chunk_started = None
 
     # -- closing ------------------------------------------------------------------------
