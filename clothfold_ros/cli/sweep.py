@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         rows = run_sweep(settings, d, points, workers=args.workers, ray_address=args.ray, previous_dir=prev,
                          progress=not args.quiet)
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, RuntimeError) as err:
         print(f"clothfold sweep: {err}", file=sys.stderr)
         return 2
     table = write_table(d, command, points)

@@ -169,6 +169,9 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
     else:
         if previous_dir is None or not (previous_dir / RUNS).exists():
             raise FileNotFoundError(f"scenario {sc.name!r} starts from {sc.after!r}: no sweep of it at {previous_dir}")
+        if (previous_dir / ".lock").exists() or not (previous_dir / "provenance.json").exists():
+            raise ValueError(f"scenario {sc.name!r} starts from {sc.after!r}, whose sweep in {previous_dir} "
+                             f"is running or unfinished (no table written yet)")
         prev = SweepSettings(**json.loads((previous_dir / SETTINGS).read_text()))
         if prev.max_area != settings.max_area:
             raise ValueError(f"{sc.after!r} was swept at max_area {prev.max_area}, this sweep uses {settings.max_area}")
@@ -324,6 +327,43 @@ def run_sweep(settings: SweepSettings, sweep_dir: str | Path, points: Iterable[i
     """
     d = Path(sweep_dir)
     d.mkdir(parents=True, exist_ok=True)
+    with _Lock(d / ".lock"):
+        return _run_locked(settings, d, points, workers, ray_address, previous_dir, progress, on_row)
+
+
+class _Lock:
+    """One sweep per directory: a lock file holding the owner's pid (a stale lock of a
+    dead process is taken over)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def __enter__(self) -> "_Lock":
+        for _ in range(2):
+            try:
+                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+                os.write(fd, str(os.getpid()).encode())
+                os.close(fd)
+                return self
+            except FileExistsError:
+                try:
+                    pid = int(self.path.read_text() or 0)
+                    os.kill(pid, 0)
+                except (ValueError, ProcessLookupError, FileNotFoundError):
+                    self.path.unlink(missing_ok=True)  # stale: its owner is gone
+                    continue
+                except PermissionError:
+                    pass
+                raise RuntimeError(f"another sweep (pid {pid}) is running in {self.path.parent}")
+        raise RuntimeError(f"could not lock {self.path.parent}")
+
+    def __exit__(self, *exc: object) -> None:
+        self.path.unlink(missing_ok=True)
+
+
+def _run_locked(settings: SweepSettings, d: Path, points: Iterable[int], workers: int | None,
+                ray_address: str | None, previous_dir: str | Path | None, progress: bool,
+                on_row: Callable[[dict], None] | None) -> list[dict]:
     want = asdict(settings)
     if (d / SETTINGS).exists():
         have = json.loads((d / SETTINGS).read_text())
