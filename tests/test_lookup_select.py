@@ -126,7 +126,14 @@ def test_table_selector(tmp_path: Path) -> None:
     mid = _table("middle", _bowl(99)[pts], points=pts,
                  feats={**definition_features(SCENARIOS["shape1"]), "stage": 3.0, "fold_type": 2.0})
     _write_table_dir(tmp_path / "ok" / "middle", mid)
+    dead = _table("both_sides", np.full(len(pts), np.nan), points=pts,
+                  feats={**definition_features(SCENARIOS["shape1"]), "stage": 2.0, "fold_type": 1.0})
+    _write_table_dir(tmp_path / "ok" / "both_sides", dead)
     sel = TableSelector(tmp_path / "ok")
+    assert sel.unusable == ["both_sides"]
+    s = sel.select(fold_name="left_side", keypoints=flat_keypoints(1, "cotton"), material="cotton", friction=0.5,
+                   duration=4.0, stage=2)
+    assert s.scenario != "both_sides" and "skipped (no successful run): both_sides" in s.note
     kp = flat_keypoints(1, "cotton")
     s = sel.select(fold_name="right_sleeve", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=0)
     assert isinstance(s, Selection) and s.scenario == "shape1"

@@ -37,9 +37,10 @@ class TableSelector:
                                     f"scripts/generate_lookup_tables.sh") from err
         except ValueError as err:
             raise ValueError(f"TableSelector: {err}") from err
-        for name, t in self.tables.items():
-            if not t.success.any():
-                raise ValueError(f"TableSelector: table {name!r} in {self.table_dir} has no successful run")
+        #: tables that cannot be chosen from (no successful run), named in every note
+        self.unusable = sorted(n for n, t in self.tables.items() if not t.success.any())
+        if len(self.unusable) == len(self.tables):
+            raise ValueError(f"TableSelector: no table in {self.table_dir} has a successful run")
 
     def select(self, *, fold_name: str, keypoints: Mapping[str, np.ndarray], material: str, friction: float,
                duration: float, stage: int) -> Selection:
@@ -62,4 +63,6 @@ class TableSelector:
         note = (f"fan point {c.point} from {', '.join(f'{n} (d={d:.2f})' for n, d in zip(c.scenarios, c.distances))}; "
                 f"smoothed loss {c.expected_loss * 1e3:.1f} mm, simulated {raw}; "
                 f"table max_area {t.provenance.get('resolution', {}).get('max_area_m2')} m^2")
+        if self.unusable:
+            note += f"; skipped (no successful run): {', '.join(self.unusable)}"
         return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note)

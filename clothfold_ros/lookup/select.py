@@ -80,7 +80,8 @@ class Choice:
 def nearest(tables: Mapping[str, Table], feats: Mapping[str, float], exclude: tuple[str, ...] = (),
             blend_margin: float = DEFAULT_BLEND_MARGIN) -> list[tuple[str, float]]:
     """[(scenario, distance)] of the tables used for `feats`, nearest first (rule step 1)."""
-    cands = sorted(((normalized_distance(feats, t.features), n) for n, t in tables.items() if n not in exclude))
+    cands = sorted(((normalized_distance(feats, t.features), n) for n, t in tables.items()
+                    if n not in exclude and t.success.any()))  # a table without a success cannot choose
     if not cands:
         raise ValueError("no lookup table to choose from" + (f" (excluding {', '.join(exclude)})" if exclude else ""))
     d0 = cands[0][0]
