@@ -179,6 +179,13 @@ class ClothSimulator:
         bc = x_prev.copy()
         for gid, g in self.grasps.items():
             bc[g.vertex_ids] = g.targets(poses[gid])
+        if fixed.size:
+            # The table stops grasped cloth too: a grasped vertex whose rigid target lies
+            # below its resting height (xi + dhat above the table) is held at that height.
+            # Without this, the start of a fold's rotation about the fold line swings the
+            # inner edge of the grasped patch into the table before the gripper has risen.
+            floor = self.contact.xi + self.contact.dhat
+            bc[fixed, 2] = np.maximum(bc[fixed, 2], np.minimum(floor, x_prev[fixed, 2]))
 
         if self.contact.kappa == 0.0:
             _, gm, _, gb, _ = self._elastic(x, True)
