@@ -178,6 +178,9 @@ class ClothSimulator:
         x = x_prev.copy()
         bc = x_prev.copy()
         for gid, g in self.grasps.items():
+            z = float(poses[gid].position[2])
+            if z < 0.0:
+                raise SimulationFailure(f"{when}: gripper {gid} commanded below the table top (z = {z * 1000:.1f} mm)")
             bc[g.vertex_ids] = g.targets(poses[gid])
         if fixed.size:
             # The table stops grasped cloth too: a grasped vertex whose rigid target lies
