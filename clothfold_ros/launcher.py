@@ -1,0 +1,219 @@
+"""A small process manager for the clothfold nodes (what `ros2 launch` does; no rclpy here).
+
+Each node runs as its own process (`python -m clothfold_ros.nodes.<node> --ros-args
+--params-file ... -p name:=value`) in its own process group, with ROS_DOMAIN_ID and
+ROS_AUTOMATIC_DISCOVERY_RANGE set. Output lines are prefixed with the node name and kept
+for `wait_for`. `stop_all` sends SIGINT to every group, then SIGTERM and SIGKILL after
+timeouts, so nothing is left behind; `Launcher` is a context manager that always stops
+everything, also on errors and Ctrl-C.
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Sequence
+
+ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_PARAMS = ROOT / "config" / "clothfold.yaml"
+PIPELINE = ("keypoint_node", "fold_planner_node", "trajectory_node")
+BACKENDS = {"sim": "cloth_sim_node", "kinematic": "kinematic_robot_node"}
+
+
+def _fmt(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_fmt(v) for v in value) + "]"
+    return str(value)
+
+
+def node_command(node: str, params_file: str | Path | None = None, params: dict | None = None,
+                 args: Sequence[str] = ()) -> list[str]:
+    """Command line of one node: its module under this interpreter, node arguments, then
+    --ros-args with the params file and `-p name:=value` overrides."""
+    cmd = [sys.executable, "-m", f"clothfold_ros.nodes.{node}", *args]
+    ros = []
+    if params_file:
+        ros += ["--params-file", str(params_file)]
+    for k, v in (params or {}).items():
+        ros += ["-p", f"{k}:={_fmt(v)}"]
+    return cmd + (["--ros-args", *ros] if ros else [])
+
+
+def pipeline_nodes(backend: str = "sim", params_file: str | Path | None = DEFAULT_PARAMS,
+                   overrides: dict[str, dict] | None = None) -> list[tuple[str, list[str]]]:
+    """(name, command) of every pipeline node for a backend ("sim" or "kinematic").
+
+    overrides: node name -> {parameter: value}. The kinematic backend has no cloth, so
+    keypoint_node publishes the model shirt's keypoints (source = model).
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
+    overrides = {k: dict(v) for k, v in (overrides or {}).items()}
+    if backend == "kinematic":
+        overrides.setdefault("keypoint_node", {}).setdefault("source", "model")
+    names = [BACKENDS[backend], *PIPELINE]
+    return [(n, node_command(n, params_file, overrides.get(n))) for n in names]
+
+
+@dataclass
+class Process:
+    name: str
+    cmd: list[str]
+    popen: subprocess.Popen
+    lines: list[str] = field(default_factory=list)
+    cond: threading.Condition = field(default_factory=threading.Condition)
+    reader: threading.Thread | None = None
+
+    @property
+    def pid(self) -> int:
+        return self.popen.pid
+
+    def alive(self) -> bool:
+        return self.popen.poll() is None
+
+
+class Launcher:
+    """Start, watch and stop node processes. Use as a context manager."""
+
+    def __init__(self, domain_id: int | None = None, localhost: bool = True, echo: bool = True,
+                 out: IO[str] | None = None, env: dict[str, str] | None = None) -> None:
+        if domain_id is not None and not 0 <= int(domain_id) <= 232:
+            raise ValueError(f"ROS_DOMAIN_ID must be in 0..232, got {domain_id}")
+        self.env = dict(os.environ)
+        self.env.update(env or {})
+        self.env["PYTHONUNBUFFERED"] = "1"
+        if domain_id is not None:
+            self.env["ROS_DOMAIN_ID"] = str(int(domain_id))
+        if localhost:
+            self.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        self.echo = echo
+        self.out = out or sys.stdout
+        self._out_lock = threading.Lock()
+        self.procs: list[Process] = []
+
+    # -- starting -----------------------------------------------------------------------
+    def start(self, name: str, cmd: Sequence[str], cwd: str | Path | None = None) -> Process:
+        popen = subprocess.Popen(list(cmd), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                 env=self.env, cwd=str(cwd or ROOT), start_new_session=True, text=True, bufsize=1,
+                                 errors="replace")
+        proc = Process(name, list(cmd), popen)
+        proc.reader = threading.Thread(target=self._read, args=(proc,), daemon=True, name=f"read-{name}")
+        proc.reader.start()
+        self.procs.append(proc)
+        return proc
+
+    def start_pipeline(self, backend: str = "sim", params_file: str | Path | None = DEFAULT_PARAMS,
+                       overrides: dict[str, dict] | None = None) -> list[Process]:
+        return [self.start(n, c) for n, c in pipeline_nodes(backend, params_file, overrides)]
+
+    def _read(self, proc: Process) -> None:
+        assert proc.popen.stdout is not None
+        for line in proc.popen.stdout:
+            line = line.rstrip("\n")
+            with proc.cond:
+                proc.lines.append(line)
+                proc.cond.notify_all()
+            if self.echo:
+                with self._out_lock:
+                    print(f"[{proc.name}] {line}", file=self.out, flush=True)
+        with proc.cond:
+            proc.cond.notify_all()
+
+    # -- watching ------------------------------------------------------------------------------
+    def wait_for(self, proc: Process, pattern: str, timeout: float) -> re.Match:
+        """Wait until a line of proc's output matches the regex; RuntimeError on timeout or exit."""
+        rx = re.compile(pattern)
+        deadline = time.monotonic() + timeout
+        seen = 0
+        with proc.cond:
+            while True:
+                for line in proc.lines[seen:]:
+                    m = rx.search(line)
+                    if m:
+                        return m
+                seen = len(proc.lines)
+                if not proc.alive() and not (proc.reader and proc.reader.is_alive()):
+                    raise RuntimeError(f"{proc.name} exited with code {proc.popen.returncode} before printing "
+                                       f"{pattern!r}; last output: {proc.lines[-5:]}")
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise RuntimeError(f"{proc.name} did not print {pattern!r} within {timeout:g} s")
+                proc.cond.wait(min(left, 0.2))
+
+    def check_alive(self) -> None:
+        """RuntimeError naming every process that has exited."""
+        dead = [f"{p.name} (exit code {p.popen.returncode})" for p in self.procs if not p.alive()]
+        if dead:
+            raise RuntimeError("process exited: " + ", ".join(dead))
+
+    # -- stopping ----------------------------------------------------------------------------------
+    @staticmethod
+    def _signal(proc: Process, sig: int) -> None:
+        try:
+            os.killpg(proc.popen.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+    def stop(self, proc: Process, timeout: float = 10.0) -> int | None:
+        """SIGINT the process group, then SIGTERM, then SIGKILL; returns the exit code."""
+        for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
+            if proc.popen.poll() is not None:
+                break
+            self._signal(proc, sig)
+            try:
+                proc.popen.wait(wait)
+            except subprocess.TimeoutExpired:
+                if sig != signal.SIGKILL:
+                    print(f"[launcher] {proc.name} ignored {signal.Signals(sig).name} for {wait:g} s",
+                          file=self.out, flush=True)
+        self._signal(proc, signal.SIGKILL)  # leftover children in the group
+        if proc.reader:
+            proc.reader.join(2.0)
+        return proc.popen.returncode
+
+    def stop_all(self, timeout: float = 10.0) -> dict[str, int | None]:
+        """Stop every process (SIGINT to all at once, then escalate per process)."""
+        for p in self.procs:
+            if p.alive():
+                self._signal(p, signal.SIGINT)
+        deadline = time.monotonic() + timeout
+        codes = {}
+        for p in reversed(self.procs):
+            codes[p.name] = self.stop(p, max(0.1, deadline - time.monotonic()))
+        return codes
+
+    def __enter__(self) -> "Launcher":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop_all()
+
+
+def run_until_interrupted(launcher: Launcher) -> int:
+    """Block until Ctrl-C/SIGTERM or until a process exits; then stop everything."""
+    stop = threading.Event()
+    old = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    code = 0
+    try:
+        while not stop.is_set():
+            dead = [p for p in launcher.procs if not p.alive()]
+            if dead:
+                print(f"[launcher] {dead[0].name} exited with code {dead[0].popen.returncode}; stopping all",
+                      file=launcher.out, flush=True)
+                code = 1
+                break
+            stop.wait(0.2)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, old)
+        launcher.stop_all()
+    return code

@@ -1,0 +1,177 @@
+"""fold_planner_node: PlanFold service (/plan_fold) -> fold specification from the latest keypoints.
+
+On a request naming a fold (left_sleeve, right_sleeve, left_side, right_side, middle) it
+builds the fold line and gripper start/end poses from the latest /keypoints
+(`folding.fold_spec`), picks (height ratio, tilt) with the selector, publishes the
+FoldSpec on /fold/spec (latched) and, when execute = true, sends it to trajectory_node
+(action /execute_fold); the response then says whether the goal was accepted (the
+outcome arrives on /fold/result). Bad requests (unknown fold, no keypoints yet,
+NaN keypoints, a refused goal) get success = false and a clear message; the node keeps
+serving.
+
+Selection: `selection` = "parameter" uses the height_ratio and tilt_deg parameters;
+"table" uses clothfold_ros.lookup.planner_selector.TableSelector(table_dir). When the
+table cannot be used the request is refused, unless fallback_to_parameters is true.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import threading
+from pathlib import Path
+
+from clothfold_msgs.action import ExecuteFold
+from clothfold_msgs.msg import FoldSpec as FoldSpecMsg, Keypoints
+from clothfold_msgs.srv import PlanFold
+from rclpy.action import ActionClient
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+
+from .. import ros_conversions as rc
+from ..folding import FOLD_NAMES, FOLD_SEQUENCE, fold_spec
+from ..trajectory import MAX_HEIGHT_RATIO, MAX_TILT_DEG
+from . import common, params
+from .params import Param
+
+PARAMS = [
+    Param("selection", "parameter", "how (height ratio, tilt) are chosen", choices=("parameter", "table")),
+    Param("height_ratio", 0.5, "Bezier height ratio (-) when selection = parameter", range=(0.01, MAX_HEIGHT_RATIO)),
+    Param("tilt_deg", 30.0, "Bezier tilt (deg) when selection = parameter", range=(0.0, MAX_TILT_DEG)),
+    Param("table_dir", "config/tables", "lookup tables (relative paths: to $CLOTHFOLD_ROOT, else the cwd)"),
+    Param("fallback_to_parameters", False, "use the parameters when the table cannot be used (else refuse)"),
+    params.MATERIAL,
+    Param("friction", 0.5, "friction coefficient assumed for table selection (-)", range=(0.0, 2.0)),
+    Param("duration", 4.0, "fold motion duration (s)", range=(0.1, 60.0)),
+    Param("settle_time", 0.2, "settle time after release (s)", range=(0.0, 10.0)),
+    Param("end_angle_deg", 175.0, "end pose: start pose rotated this much about the fold line (deg)",
+          range=(1.0, 180.0)),
+    Param("end_height", 0.05, "end pose height above the table (m)", range=(0.0, 0.5)),
+    Param("goal_timeout", 10.0, "wait this long for trajectory_node to accept a goal (s)", range=(0.1, 600.0)),
+]
+
+
+def resolve_dir(path: str) -> Path:
+    p = Path(path)
+    if p.is_absolute():
+        return p
+    root = os.environ.get("CLOTHFOLD_ROOT")
+    return (Path(root) / p) if root else p
+
+
+class FoldPlannerNode(Node):
+    def __init__(self) -> None:
+        super().__init__("fold_planner_node")
+        params.declare(self, PARAMS)
+        self.group = ReentrantCallbackGroup()
+        self.keypoints: dict | None = None
+        self.keypoints_stamp = 0
+        self.create_subscription(Keypoints, common.KEYPOINTS, self.on_keypoints, common.LATCHED,
+                                 callback_group=self.group)
+        self.spec_pub = self.create_publisher(FoldSpecMsg, common.FOLD_SPEC, common.LATCHED)
+        self.executor_client = ActionClient(self, ExecuteFold, common.EXECUTE_FOLD, callback_group=self.group)
+        self.create_service(PlanFold, common.PLAN_FOLD, self.on_plan, callback_group=self.group)
+        self._selector = None
+        self._selector_error: str | None = None
+        self.lock = threading.Lock()
+        self.get_logger().info(f"ready: {common.PLAN_FOLD} (selection = {params.value(self, 'selection')})")
+
+    def on_keypoints(self, msg: Keypoints) -> None:
+        try:
+            kp, _ = rc.keypoints_from_msg(msg)
+        except ValueError as err:
+            self.get_logger().error(f"keypoints ignored (keeping the last good ones): {err}")
+            return
+        with self.lock:
+            self.keypoints, self.keypoints_stamp = kp, rc.time_to_ns(msg.header.stamp)
+
+    # -- selection -----------------------------------------------------------------------------
+    def selector(self):
+        """The TableSelector (loaded once, lazily); raises RuntimeError with the reason."""
+        if self._selector is None and self._selector_error is None:
+            table_dir = resolve_dir(params.value(self, "table_dir"))
+            try:
+                from ..lookup.planner_selector import TableSelector
+
+                self._selector = TableSelector(table_dir)
+            except Exception as err:  # noqa: BLE001 - missing module, tables or a bad file
+                self._selector_error = f"lookup table selector unavailable ({table_dir}): {type(err).__name__}: {err}"
+        if self._selector is None:
+            raise RuntimeError(self._selector_error)
+        return self._selector
+
+    def select(self, name: str, keypoints: dict) -> tuple[float, float, str]:
+        """(height ratio, tilt deg, note) for the fold."""
+        h, tilt = params.value(self, "height_ratio"), params.value(self, "tilt_deg")
+        if params.value(self, "selection") == "parameter":
+            return h, tilt, "from parameters"
+        try:
+            s = self.selector().select(fold_name=name, keypoints=keypoints, material=params.value(self, "material"),
+                                       friction=params.value(self, "friction"),
+                                       duration=params.value(self, "duration"), stage=FOLD_SEQUENCE.index(name))
+            return float(s.height_ratio), float(s.tilt_deg), \
+                f"table {s.scenario}: expected loss {s.expected_loss:.4f} m; {s.note}"
+        except Exception as err:  # noqa: BLE001
+            if not params.value(self, "fallback_to_parameters"):
+                raise RuntimeError(f"table selection failed: {err}") from err
+            self.get_logger().warn(f"table selection failed ({err}); falling back to parameters as configured")
+            return h, tilt, f"from parameters (table failed: {err})"
+
+    # -- service --------------------------------------------------------------------------------
+    def on_plan(self, req: PlanFold.Request, resp: PlanFold.Response) -> PlanFold.Response:
+        resp.success = False
+        try:
+            msg = self.plan(req.fold_name)
+        except (ValueError, RuntimeError) as err:
+            resp.message = f"cannot plan {req.fold_name!r}: {err}"
+            self.get_logger().error(resp.message)
+            return resp
+        resp.spec = msg
+        self.spec_pub.publish(msg)
+        if not req.execute:
+            resp.success, resp.message = True, f"planned {req.fold_name} (h={msg.height_ratio:g}, " \
+                                               f"tilt={msg.tilt_deg:g} deg)"
+            return resp
+        accepted, why = self.send(msg)
+        resp.success = accepted
+        resp.message = (f"executing {req.fold_name} (h={msg.height_ratio:g}, tilt={msg.tilt_deg:g} deg); "
+                        f"result on {common.FOLD_RESULT}") if accepted else f"planned {req.fold_name} but {why}"
+        (self.get_logger().info if accepted else self.get_logger().error)(resp.message)
+        return resp
+
+    def plan(self, name: str) -> FoldSpecMsg:
+        if name not in FOLD_NAMES:
+            raise ValueError(f"unknown fold; known folds: {', '.join(FOLD_NAMES)}")
+        with self.lock:
+            kp, stamp = self.keypoints, self.keypoints_stamp
+        if kp is None:
+            raise ValueError(f"no keypoints received on {common.KEYPOINTS} yet")
+        spec = fold_spec(name, kp, params.value(self, "end_angle_deg"), params.value(self, "end_height"))
+        h, tilt, note = self.select(name, kp)
+        self.get_logger().info(f"{name}: h={h:g}, tilt={tilt:g} deg ({note}); keypoints stamped {stamp * 1e-9:.3f} s")
+        return rc.fold_spec_to_msg(rc.PlannedFold(spec, h, tilt, params.value(self, "duration"),
+                                                  params.value(self, "settle_time"), FOLD_SEQUENCE.index(name),
+                                                  self.get_clock().now().nanoseconds))
+
+    def send(self, msg: FoldSpecMsg) -> tuple[bool, str]:
+        timeout = params.value(self, "goal_timeout")
+        if not self.executor_client.wait_for_server(timeout_sec=timeout):
+            return False, f"trajectory_node ({common.EXECUTE_FOLD}) is not available"
+        done = threading.Event()
+        future = self.executor_client.send_goal_async(ExecuteFold.Goal(spec=msg))
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(timeout):
+            return False, f"trajectory_node did not answer within {timeout:g} s"
+        handle = future.result()
+        if handle is None or not handle.accepted:
+            return False, ("trajectory_node refused it (a fold is running, or the motion leaves the workspace "
+                           "or exceeds the speed limit; its log says which)")
+        return True, ""
+
+
+def main(argv: list[str] | None = None) -> int:
+    full = list(sys.argv if argv is None else ["fold_planner_node", *argv])
+    return common.run(FoldPlannerNode, full, threads=4)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

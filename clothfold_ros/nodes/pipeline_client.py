@@ -1,0 +1,118 @@
+"""PipelineClient: drive a running pipeline from Python (used by `clothfold demo` and the tests).
+
+Calls /plan_fold, waits for /keypoints and /fold/result. Spins its own node in a
+background thread; call `close()` (or use it as a context manager) to stop it.
+rclpy must not be initialised yet in this process, or pass a context.
+"""
+from __future__ import annotations
+
+import threading
+import time
+
+import rclpy
+from clothfold_msgs.msg import FoldResult, Keypoints
+from clothfold_msgs.srv import PlanFold
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+from .. import ros_conversions as rc
+from . import common
+
+
+class PipelineClient:
+    def __init__(self, name: str = "clothfold_client") -> None:
+        self.context = rclpy.Context()
+        rclpy.init(args=[], context=self.context)
+        self.node = Node(name, context=self.context)
+        self.cond = threading.Condition()
+        self.keypoints: Keypoints | None = None
+        self.results: list[FoldResult] = []
+        self.node.create_subscription(Keypoints, common.KEYPOINTS, self._on_keypoints, common.LATCHED)
+        self.node.create_subscription(FoldResult, common.FOLD_RESULT, self._on_result, common.RESULTS)
+        self.plan_client = self.node.create_client(PlanFold, common.PLAN_FOLD)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except Exception:  # noqa: BLE001 - shutdown
+            pass
+
+    def _on_keypoints(self, msg: Keypoints) -> None:
+        with self.cond:
+            self.keypoints = msg
+            self.cond.notify_all()
+
+    def _on_result(self, msg: FoldResult) -> None:
+        with self.cond:
+            self.results.append(msg)
+            self.cond.notify_all()
+
+    def wait_keypoints(self, timeout: float, newer_than_ns: int = -1) -> Keypoints:
+        """The latest keypoints (stamped after newer_than_ns); TimeoutError."""
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while self.keypoints is None or rc.time_to_ns(self.keypoints.header.stamp) <= newer_than_ns:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"no keypoints on {common.KEYPOINTS} within {timeout:g} s")
+                self.cond.wait(min(left, 0.2))
+            return self.keypoints
+
+    def plan(self, fold_name: str, execute: bool = True, timeout: float = 30.0,
+             wait_for_keypoints: bool = True) -> PlanFold.Response:
+        """Call /plan_fold; TimeoutError when the planner does not answer. With
+        wait_for_keypoints, a refusal because the planner has no keypoints yet is retried
+        until the timeout (the planner may start after the keypoints were published)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            resp = self._plan_once(fold_name, execute, max(0.1, deadline - time.monotonic()))
+            if resp.success or not wait_for_keypoints or "no keypoints" not in resp.message \
+                    or time.monotonic() > deadline:
+                return resp
+            time.sleep(0.2)
+
+    def _plan_once(self, fold_name: str, execute: bool, timeout: float) -> PlanFold.Response:
+        if not self.plan_client.wait_for_service(timeout_sec=timeout):
+            raise TimeoutError(f"{common.PLAN_FOLD} not available within {timeout:g} s")
+        done = threading.Event()
+        future = self.plan_client.call_async(PlanFold.Request(fold_name=fold_name, execute=execute))
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(timeout):
+            raise TimeoutError(f"{common.PLAN_FOLD} did not answer within {timeout:g} s")
+        return future.result()
+
+    def result_count(self) -> int:
+        with self.cond:
+            return len(self.results)
+
+    def wait_result(self, fold_name: str, timeout: float, after: int = 0) -> FoldResult:
+        """The first /fold/result for fold_name among results received after the first `after`."""
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while True:
+                for r in self.results[after:]:
+                    if r.fold_name == fold_name:
+                        return r
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"no {common.FOLD_RESULT} for {fold_name} within {timeout:g} s")
+                self.cond.wait(min(left, 0.5))
+
+    def close(self) -> None:
+        try:
+            self.executor.shutdown(timeout_sec=1.0)
+        except Exception:  # noqa: BLE001
+            pass
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self.thread.join(2.0)
+
+    def __enter__(self) -> "PipelineClient":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,265 @@
+"""trajectory_node: executes fold specifications (action /execute_fold, clothfold_msgs/ExecuteFold).
+
+For one goal (a FoldSpec with height ratio, tilt, duration) it
+1. checks it (finite values, gripper count, workspace box, gripper speed limit) and that
+   no other fold runs; a refused goal is rejected with the reason logged;
+2. picks the start time t0 = now + start_delay (node clock: /clock with use_sim_time, or
+   wall time), publishes the spec on /fold/active and each gripper's whole path
+   (nav_msgs/Path, latched) on /gripper_<i>/path;
+3. closes the grippers at t0 (clothfold_msgs/GripperCommand position 0 on
+   /gripper_<i>/command, stamped t0), streams each gripper's geometry_msgs/PoseStamped
+   target on /gripper_<i>/target_pose at `rate` Hz (stamps t0 + k / rate, frame
+   "table"), publishing every sample whose stamp is <= now + lookahead (lock-step
+   backends need to see the next sample before their clock reaches it), and opens the
+   grippers (position = open_position) stamped at the last sample;
+4. reports feedback (progress 0..1, time from start) and, once the backend's
+   /fold/result for this fold arrives (wait_for_result), the action result.
+Everything in the table frame (m, z up).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+
+import numpy as np
+from clothfold_msgs.action import ExecuteFold
+from clothfold_msgs.msg import FoldResult, FoldSpec as FoldSpecMsg, GripperCommand
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+
+from .. import ros_conversions as rc
+from ..pose import Pose
+from ..trajectory import FoldTrajectory
+from . import common, params
+from .limits import check_trajectory
+from .params import Param
+
+PARAMS = [
+    Param("rate", 100.0, "target pose stream rate (Hz)", range=(1.0, 1000.0)),
+    Param("start_delay", 0.5, "time from accepting a fold to closing the grippers (s, node clock)",
+          range=(0.0, 10.0)),
+    Param("lookahead", 0.2, "publish samples this far ahead of the clock (s); >= the backend's dt for lock-step, "
+          "0 for a driver that executes targets on receipt", range=(0.0, 5.0)),
+    Param("workspace_min", [-1.0, -1.0, 0.0], "workspace box lower corner (m, table frame)", range=(-10.0, 10.0),
+          length=3),
+    Param("workspace_max", [1.0, 1.0, 1.0], "workspace box upper corner (m, table frame)", range=(-10.0, 10.0),
+          length=3),
+    Param("max_speed", 1.0, "gripper speed limit (m/s)", range=(0.01, 10.0)),
+    params.N_GRIPPERS,
+    Param("open_position", 0.08, "finger opening of an open gripper (m); 0 = closed", range=(0.001, 1.0)),
+    Param("max_effort", -1.0, "gripper max effort (N); negative = no limit", range=(-1.0, 1000.0)),
+    Param("wait_for_result", True, "wait for the backend's /fold/result before finishing the goal"),
+    Param("result_timeout", 600.0, "wall seconds to wait for /fold/result after the motion", range=(0.1, 36000.0)),
+    Param("stall_timeout", 60.0, "abort when the clock stands still this many wall seconds", range=(0.1, 3600.0)),
+]
+
+
+def _workspace_check(values: dict) -> str | None:
+    lo, hi = list(values["workspace_min"]), list(values["workspace_max"])
+    if any(a >= b for a, b in zip(lo, hi)):
+        return f"workspace_min {lo} must be below workspace_max {hi} on every axis"
+    return None
+
+
+class TrajectoryNode(Node):
+    def __init__(self) -> None:
+        super().__init__("trajectory_node")
+        params.declare(self, PARAMS, _workspace_check)
+        n = params.value(self, "n_grippers")
+        self.group = ReentrantCallbackGroup()
+        self.pose_pubs = [self.create_publisher(PoseStamped, common.gripper_topic(i, "target_pose"), common.TARGETS)
+                          for i in range(n)]
+        self.cmd_pubs = [self.create_publisher(GripperCommand, common.gripper_topic(i, "command"), common.COMMANDS)
+                         for i in range(n)]
+        self.path_pubs = [self.create_publisher(Path, common.gripper_topic(i, "path"), common.LATCHED)
+                          for i in range(n)]
+        self.active_pub = self.create_publisher(FoldSpecMsg, common.FOLD_ACTIVE, common.LATCHED)
+        self.create_subscription(FoldResult, common.FOLD_RESULT, self.on_result, common.RESULTS,
+                                 callback_group=self.group)
+        self.results: list[FoldResult] = []
+        self.results_cv = threading.Condition()
+        self.lock = threading.Lock()
+        self.busy: str | None = None  # name of the running fold
+        self.server = ActionServer(self, ExecuteFold, common.EXECUTE_FOLD, self.execute,
+                                   goal_callback=self.on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
+                                   callback_group=self.group)
+        self.get_logger().info(f"ready: {common.EXECUTE_FOLD}, {n} gripper(s), {params.value(self, 'rate'):g} Hz")
+
+    # -- checks ---------------------------------------------------------------------------
+    def prepare(self, spec_msg: FoldSpecMsg) -> tuple[rc.PlannedFold, FoldTrajectory]:
+        """PlannedFold and trajectory of a goal; ValueError with the reason it is refused."""
+        plan = rc.fold_spec_from_msg(spec_msg)
+        if not plan.duration > 0:
+            raise ValueError(f"duration must be > 0 s, got {plan.duration}")
+        if not plan.settle_time >= 0:
+            raise ValueError(f"settle_time must be >= 0 s, got {plan.settle_time}")
+        traj = FoldTrajectory(plan.spec, plan.height_ratio, plan.tilt_deg, plan.duration)
+        reason = check_trajectory(traj, params.value(self, "rate"), params.value(self, "workspace_min"),
+                                  params.value(self, "workspace_max"), params.value(self, "max_speed"),
+                                  params.value(self, "n_grippers"))
+        if reason:
+            raise ValueError(reason)
+        return plan, traj
+
+    def on_goal(self, goal: ExecuteFold.Goal) -> GoalResponse:
+        name = goal.spec.fold_name or "?"
+        try:
+            self.prepare(goal.spec)
+        except Exception as err:  # noqa: BLE001 - any bad spec is refused, the node keeps serving
+            self.get_logger().error(f"fold {name!r} refused: {err}")
+            return GoalResponse.REJECT
+        with self.lock:
+            if self.busy is not None:
+                self.get_logger().error(f"fold {name!r} refused: fold {self.busy!r} is still running")
+                return GoalResponse.REJECT
+            self.busy = name
+        return GoalResponse.ACCEPT
+
+    def on_result(self, msg: FoldResult) -> None:
+        with self.results_cv:
+            self.results.append(msg)
+            del self.results[:-20]
+            self.results_cv.notify_all()
+
+    # -- execution ----------------------------------------------------------------------------
+    def now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    def command(self, grippers: range, closed: bool, stamp_ns: int) -> None:
+        pos = 0.0 if closed else params.value(self, "open_position")
+        for i in grippers:
+            self.cmd_pubs[i].publish(rc.gripper_command(i, pos, params.value(self, "max_effort"), stamp_ns))
+
+    def execute(self, handle) -> ExecuteFold.Result:
+        try:
+            return self._execute(handle)
+        except Exception as err:  # noqa: BLE001 - never leave the node busy
+            if not self.context.ok():  # shutting down: nothing to report to
+                return ExecuteFold.Result(success=False, message="trajectory_node shut down")
+            self.get_logger().error(f"fold failed: {type(err).__name__}: {err}")
+            try:
+                handle.abort()
+            except Exception:  # noqa: BLE001 - already finished
+                pass
+            return ExecuteFold.Result(success=False, message=f"{type(err).__name__}: {err}")
+        finally:
+            with self.lock:
+                self.busy = None
+
+    def _wait_clock(self, until_ns: int, stall: float, handle) -> str | None:
+        """Wait until the clock reaches until_ns; reason on stall or cancel."""
+        last, since = self.now_ns(), time.monotonic()
+        while self.now_ns() < until_ns:
+            if not self.context.ok():
+                return "shutting down"
+            if handle.is_cancel_requested:
+                return "cancelled"
+            now = self.now_ns()
+            if now != last:
+                last, since = now, time.monotonic()
+            elif time.monotonic() - since > stall:
+                return f"the clock stood still for {stall:g} s (is the backend running and publishing /clock?)"
+            time.sleep(0.005)
+        return None
+
+    def _execute(self, handle) -> ExecuteFold.Result:
+        plan, traj = self.prepare(handle.request.spec)
+        spec = plan.spec
+        rate = params.value(self, "rate")
+        ahead = rc.seconds_to_ns(params.value(self, "lookahead"))
+        stall = params.value(self, "stall_timeout")
+        log = self.get_logger()
+        grippers = range(spec.n_grippers)
+        if self.now_ns() == 0:  # sim time before the first /clock
+            reason = self._wait_clock(1, stall, handle)
+            if reason:
+                raise RuntimeError(f"no clock: {reason}")
+        times, pos, quat = traj.sample(rate)
+        t0 = self.now_ns() + rc.seconds_to_ns(params.value(self, "start_delay"))
+        stamps = [t0 + rc.seconds_to_ns(t) for t in times]
+        poses = [[Pose(pos[k, g], quat[k, g]) for g in grippers] for k in range(len(times))]
+        with self.results_cv:
+            self.results.clear()
+        active = rc.fold_spec_to_msg(rc.PlannedFold(spec, plan.height_ratio, plan.tilt_deg, plan.duration,
+                                                    plan.settle_time, plan.stage, t0))
+        self.active_pub.publish(active)
+        for g in grippers:
+            self.path_pubs[g].publish(rc.path_msg(stamps, [p[g] for p in poses]))
+        log.info(f"executing {spec.name} (stage {plan.stage}, h={plan.height_ratio:g}, tilt={plan.tilt_deg:g} deg, "
+                 f"{plan.duration:g} s, {len(times)} samples x {len(grippers)} gripper(s)) from t0={t0 * 1e-9:.3f} s")
+        self.command(grippers, True, t0)
+        k, last, since = 0, self.now_ns(), time.monotonic()
+        feedback = ExecuteFold.Feedback()
+        cancelled = False
+        while k < len(stamps):
+            if not self.context.ok():
+                raise RuntimeError("shutting down during the motion")
+            if handle.is_cancel_requested:
+                cancelled = True
+                break
+            now = self.now_ns()
+            while k < len(stamps) and stamps[k] <= now + ahead:
+                for g in grippers:
+                    self.pose_pubs[g].publish(rc.pose_stamped(poses[k][g], stamps[k]))
+                k += 1
+            if now != last:
+                last, since = now, time.monotonic()
+                feedback.time_from_start = max(0.0, (now - t0) * 1e-9)
+                feedback.progress = float(np.clip(feedback.time_from_start / plan.duration, 0.0, 1.0))
+                handle.publish_feedback(feedback)
+            elif time.monotonic() - since > stall:
+                self.command(grippers, False, max(now, stamps[max(k - 1, 0)]))
+                raise RuntimeError(f"the clock stood still for {stall:g} s during the motion (backend gone?)")
+            if k < len(stamps):
+                time.sleep(min(1.0 / rate, 0.01))
+        t_open = stamps[max(k - 1, 0)]
+        self.command(grippers, False, t_open)
+        if cancelled:
+            handle.canceled()
+            log.warn(f"fold {spec.name} cancelled; grippers open at {t_open * 1e-9:.3f} s")
+            return ExecuteFold.Result(success=False, message="cancelled")
+        reason = self._wait_clock(t_open, stall, handle)
+        if reason:
+            raise RuntimeError(f"waiting for the end of the motion: {reason}")
+        feedback.progress, feedback.time_from_start = 1.0, plan.duration
+        handle.publish_feedback(feedback)
+        result = FoldResult(header=rc.header(t_open), fold_name=spec.name, stage=plan.stage, success=True,
+                            reason="", loss=math.nan, height_ratio=plan.height_ratio, tilt_deg=plan.tilt_deg)
+        if params.value(self, "wait_for_result"):
+            got = self._wait_result(spec.name, t0, params.value(self, "result_timeout"))
+            if got is None:
+                handle.abort()
+                return ExecuteFold.Result(success=False, message=f"no {common.FOLD_RESULT} for {spec.name} within "
+                                          f"{params.value(self, 'result_timeout'):g} s", result=result)
+            result = got
+        ok = bool(result.success)
+        msg = f"{spec.name}: loss {result.loss:.6f} m" if ok else f"{spec.name} failed: {result.reason}"
+        (handle.succeed if ok else handle.abort)()
+        log.info(f"done: {msg}")
+        return ExecuteFold.Result(success=ok, message=msg, result=result)
+
+    def _wait_result(self, name: str, t0: int, timeout: float) -> FoldResult | None:
+        deadline = time.monotonic() + timeout
+        with self.results_cv:
+            while True:
+                for r in self.results:
+                    if r.fold_name == name and rc.time_to_ns(r.header.stamp) >= t0:
+                        return r
+                left = deadline - time.monotonic()
+                if left <= 0 or not self.context.ok():
+                    return None
+                self.results_cv.wait(min(left, 0.5))
+
+
+def main(argv: list[str] | None = None) -> int:
+    full = list(sys.argv if argv is None else ["trajectory_node", *argv])
+    return common.run(TrajectoryNode, full, threads=4)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
