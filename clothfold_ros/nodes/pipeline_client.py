@@ -10,8 +10,10 @@ import threading
 import time
 
 import rclpy
-from clothfold_msgs.msg import FoldResult, Keypoints
+from clothfold_msgs.action import ExecuteFold
+from clothfold_msgs.msg import ClothState, FoldResult, FoldSpec as FoldSpecMsg, Keypoints
 from clothfold_msgs.srv import PlanFold
+from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
@@ -30,6 +32,9 @@ class PipelineClient:
         self.node.create_subscription(Keypoints, common.KEYPOINTS, self._on_keypoints, common.LATCHED)
         self.node.create_subscription(FoldResult, common.FOLD_RESULT, self._on_result, common.RESULTS)
         self.plan_client = self.node.create_client(PlanFold, common.PLAN_FOLD)
+        self.execute_client = ActionClient(self.node, ExecuteFold, common.EXECUTE_FOLD)
+        self.keypoints_pub = self.node.create_publisher(Keypoints, common.KEYPOINTS, common.LATCHED)
+        self.state_pub = self.node.create_publisher(ClothState, common.CLOTH_STATE, common.LATCHED)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.thread = threading.Thread(target=self._spin, daemon=True)
@@ -84,6 +89,17 @@ class PipelineClient:
         if not done.wait(timeout):
             raise TimeoutError(f"{common.PLAN_FOLD} did not answer within {timeout:g} s")
         return future.result()
+
+    def send_goal(self, spec: FoldSpecMsg, timeout: float = 30.0) -> bool:
+        """Send an ExecuteFold goal straight to trajectory_node; True if it was accepted."""
+        if not self.execute_client.wait_for_server(timeout_sec=timeout):
+            raise TimeoutError(f"{common.EXECUTE_FOLD} not available within {timeout:g} s")
+        done = threading.Event()
+        future = self.execute_client.send_goal_async(ExecuteFold.Goal(spec=spec))
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(timeout):
+            raise TimeoutError(f"{common.EXECUTE_FOLD} did not answer within {timeout:g} s")
+        return bool(future.result().accepted)
 
     def result_count(self) -> int:
         with self.cond:

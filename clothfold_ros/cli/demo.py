@@ -1,0 +1,105 @@
+"""`clothfold demo`: the whole pipeline as separate processes, one recorded fold (or the sequence).
+
+Starts the recorder and every node (cloth_sim_node or kinematic_robot_node, keypoint_node,
+fold_planner_node, trajectory_node) as their own processes on a private ROS domain with
+localhost-only discovery, plans and executes the default shirt's left sleeve (or, with
+--sequence, left sleeve, right sleeve, left side, right side, middle, re-planning each
+stage from the keypoints of the cloth as it is then), prints each loss and the bag path,
+and stops every process (the recorder with SIGINT, so the bag is complete).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+from ..folding import FOLD_NAMES, FOLD_SEQUENCE
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("demo", help="fold the default shirt's left sleeve through the ROS pipeline; record a bag")
+    p.add_argument("--backend", choices=("sim", "kinematic"), default="sim", help="robot backend (default sim)")
+    p.add_argument("--fold", choices=FOLD_NAMES, default="left_sleeve", help="the fold (default left_sleeve)")
+    p.add_argument("--sequence", action="store_true", help="fold the whole sequence: " + ", ".join(FOLD_SEQUENCE))
+    p.add_argument("--max-area", type=float, default=1e-3, help="sim mesh max triangle area (m^2; default 1e-3)")
+    p.add_argument("--selection", choices=("table", "parameter"), default=None,
+                   help="(height ratio, tilt) from the lookup table or the parameters (default: config file)")
+    p.add_argument("--bags", type=Path, default=Path("bags"), help="bag directory (default bags/)")
+    p.add_argument("--name", default=None, help="run name (default demo-<date>-<time>)")
+    p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: from the process id)")
+    p.add_argument("--timeout", type=float, default=900.0, help="seconds allowed per fold")
+    p.add_argument("--quiet", action="store_true", help="do not echo the nodes' output")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..launcher import ROOT, Launcher, node_command
+
+    tic = time.monotonic()
+    folds = list(FOLD_SEQUENCE) if args.sequence else [args.fold]
+    name = args.name or time.strftime("demo-%Y%m%d-%H%M%S")
+    bags = args.bags if args.bags.is_absolute() else ROOT / args.bags
+    bags.mkdir(parents=True, exist_ok=True)
+    bag = bags / f"{name}.mcap"
+    domain = args.domain_id if args.domain_id is not None else 100 + os.getpid() % 50
+    os.environ["ROS_DOMAIN_ID"] = str(domain)  # the in-process client joins the same domain
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    overrides: dict[str, dict] = {"cloth_sim_node": {"max_area": args.max_area}}
+    if args.selection:
+        overrides["fold_planner_node"] = {"selection": args.selection}
+    print(f"[demo] {args.backend} backend, folds: {', '.join(folds)}, ROS_DOMAIN_ID={domain}, bag {bag}", flush=True)
+    losses: list[tuple[str, bool, float, str]] = []
+    code = 1
+    launcher = Launcher(domain_id=domain, echo=not args.quiet)
+    recorder = None
+    try:
+        recorder = launcher.start("recorder_node", node_command("recorder_node", args=["--output", str(bag)]))
+        launcher.wait_for(recorder, r"recording to", 120)
+        launcher.start_pipeline(args.backend, overrides=overrides)
+        from ..nodes.pipeline_client import PipelineClient
+        from ..ros_conversions import time_to_ns
+
+        with PipelineClient("clothfold_demo") as client:
+            kp = client.wait_keypoints(120)
+            for topic in ("/gripper_0/target_pose", "/fold/result"):  # record the fold from its start
+                launcher.wait_for(recorder, f"recording {topic} ", 60)
+            for stage, fold in enumerate(folds):
+                launcher.check_alive()
+                before = client.result_count()
+                resp = client.plan(fold, execute=True, timeout=120)
+                if not resp.success:
+                    losses.append((fold, False, math.nan, resp.message))
+                    print(f"[demo] {fold}: planner refused: {resp.message}", flush=True)
+                    break
+                print(f"[demo] stage {stage}: {resp.message}", flush=True)
+                res = client.wait_result(fold, args.timeout, after=before)
+                losses.append((fold, res.success, res.loss, res.reason))
+                print(f"[demo] {fold}: {'success' if res.success else 'FAILED'}, loss {res.loss:.6f} m"
+                      + (f" ({res.reason})" if res.reason else "") + f", {res.steps} steps", flush=True)
+                if not res.success:
+                    print(f"[demo] stopping the sequence: {fold} failed", flush=True)
+                    break
+                if stage + 1 < len(folds) and args.backend == "sim":
+                    # the next stage is planned from the keypoints of the cloth as it is now
+                    kp = client.wait_keypoints(60, newer_than_ns=time_to_ns(res.header.stamp) - 1)
+        code = 0 if losses and all(ok for _, ok, _, _ in losses) and len(losses) == len(folds) else 1
+    except (RuntimeError, TimeoutError) as err:
+        print(f"[demo] error: {err}", file=sys.stderr, flush=True)
+    except KeyboardInterrupt:
+        print("[demo] interrupted", file=sys.stderr, flush=True)
+    finally:
+        closed = None
+        if recorder is not None:
+            time.sleep(1.0)  # let the recorder write what is in flight (the last result)
+            launcher.stop(recorder, timeout=30)
+            closed = next((ln for ln in recorder.lines if "bag closed" in ln), None)
+        launcher.stop_all()
+    print("[demo] ---", flush=True)
+    for fold, ok, loss, reason in losses:
+        print(f"[demo] {fold}: loss {loss:.6f} m {'ok' if ok else 'FAILED ' + reason}", flush=True)
+    print(f"[demo] bag: {bag} ({closed or 'recorder did not report closing the bag'})", flush=True)
+    print(f"[demo] wall time {time.monotonic() - tic:.1f} s; all processes stopped", flush=True)
+    return code

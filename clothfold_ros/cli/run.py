@@ -1,0 +1,21 @@
+"""`clothfold run <node> [args] [--ros-args ...]`: start one pipeline node in this process
+(what `ros2 run clothfold_ros <node>` does on a ROS install)."""
+from __future__ import annotations
+
+import argparse
+import importlib
+
+NODES = ("keypoint_node", "fold_planner_node", "trajectory_node", "cloth_sim_node", "kinematic_robot_node",
+         "recorder_node", "player_node")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("run", help="run one node (e.g. clothfold run cloth_sim_node --ros-args -p max_area:=2e-3)")
+    p.add_argument("node", choices=NODES, help="node to run")
+    p.add_argument("args", nargs=argparse.REMAINDER, help="node arguments, then --ros-args ...")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    module = importlib.import_module(f"clothfold_ros.nodes.{args.node}")
+    return int(module.main(list(args.args)) or 0)

@@ -1,0 +1,65 @@
+"""The pipeline against cloth_sim_node (separate processes, very coarse mesh): lock-step makes
+the ROS run equal the headless run_fold for the same inputs; keypoints track the folded cloth;
+a second fold continues from the first (composed target)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from clothfold_ros.garment import make_shirt
+from clothfold_ros.launcher import Launcher
+from clothfold_ros.materials import material
+from clothfold_ros.ros_conversions import fold_spec_from_msg, keypoints_from_msg
+from clothfold_ros.sim.runner import run_fold
+
+DOMAIN = 150
+MAX_AREA = 5e-3  # ~120 triangles: a few seconds per fold on one core
+
+
+@pytest.fixture
+def pipeline(monkeypatch):
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(DOMAIN))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    from clothfold_ros.nodes.pipeline_client import PipelineClient
+
+    with Launcher(domain_id=DOMAIN, echo=False) as launcher:
+        launcher.start_pipeline("sim", overrides={
+            "cloth_sim_node": {"max_area": MAX_AREA, "max_loss": 10.0},
+            "fold_planner_node": {"selection": "parameter", "height_ratio": 0.7, "tilt_deg": 20.0},
+        })
+        with PipelineClient("test_pipeline_sim") as client:
+            yield launcher, client
+        launcher.check_alive()  # no node crashed during the test
+
+
+def test_sim_pipeline_equals_run_fold_and_tracks_the_cloth(pipeline):
+    launcher, client = pipeline
+    flat, _ = keypoints_from_msg(client.wait_keypoints(120))
+    resp = client.plan("left_sleeve", execute=True, timeout=60)
+    assert resp.success, resp.message
+    res = client.wait_result("left_sleeve", 240)
+    assert res.success, res.reason
+    plan = fold_spec_from_msg(resp.spec)
+    assert (plan.height_ratio, plan.tilt_deg) == (0.7, 20.0)
+    # the same inputs through the headless runner
+    garment = make_shirt(1, max_area=MAX_AREA)
+    ref = run_fold(garment, plan.spec, material("cotton"), 0.5, plan.height_ratio, plan.tilt_deg,
+                   duration=plan.duration, dt=0.04, settle_time=plan.settle_time)
+    assert ref.success, ref.reason
+    assert res.steps == ref.steps
+    assert math.isfinite(res.loss) and abs(res.loss - ref.loss) < 1e-9, (res.loss, ref.loss)
+
+    # keypoints now come from the folded cloth: the left cuff moved onto the shirt
+    folded, _ = keypoints_from_msg(client.wait_keypoints(60, newer_than_ns=0))
+    moved = np.linalg.norm(folded["sleeve_top_left"][:2] - flat["sleeve_top_left"][:2])
+    assert moved > 0.1, moved
+
+    # a second fold starts from the folded cloth, planned from the live keypoints
+    before = client.result_count()
+    resp2 = client.plan("right_sleeve", execute=True, timeout=60)
+    assert resp2.success, resp2.message
+    res2 = client.wait_result("right_sleeve", 240, after=before)
+    assert res2.success and math.isfinite(res2.loss), res2.reason
+    assert res2.stage == 1
