@@ -118,6 +118,14 @@ class FoldPlannerNode(Node):
 
     # -- service --------------------------------------------------------------------------------
     def on_plan(self, req: PlanFold.Request, resp: PlanFold.Response) -> PlanFold.Response:
+        try:
+            return self._on_plan(req, resp)
+        except Exception as err:  # noqa: BLE001 - a bad request never kills the planner
+            resp.success, resp.message = False, f"cannot plan {req.fold_name!r}: {type(err).__name__}: {err}"
+            self.get_logger().error(resp.message)
+            return resp
+
+    def _on_plan(self, req: PlanFold.Request, resp: PlanFold.Response) -> PlanFold.Response:
         resp.success = False
         try:
             msg = self.plan(req.fold_name)
@@ -135,7 +143,10 @@ class FoldPlannerNode(Node):
         resp.success = accepted
         resp.message = (f"executing {req.fold_name} (h={msg.height_ratio:g}, tilt={msg.tilt_deg:g} deg); "
                         f"result on {common.FOLD_RESULT}") if accepted else f"planned {req.fold_name} but {why}"
-        (self.get_logger().info if accepted else self.get_logger().error)(resp.message)
+        if accepted:
+            self.get_logger().info(resp.message)
+        else:
+            self.get_logger().error(resp.message)
         return resp
 
     def plan(self, name: str) -> FoldSpecMsg:
