@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
             for stage, fold in enumerate(folds):
                 launcher.check_alive()
                 before = client.result_count()
-                resp = client.plan(fold, execute=True, timeout=120)
+                resp = client.plan(fold, execute=True, timeout=120, retry_refused=10.0)
                 if not resp.success:
                     losses.append((fold, False, math.nan, resp.message))
                     print(f"[demo] {fold}: planner refused: {resp.message}", flush=True)

@@ -68,15 +68,20 @@ class PipelineClient:
             return self.keypoints
 
     def plan(self, fold_name: str, execute: bool = True, timeout: float = 30.0,
-             wait_for_keypoints: bool = True) -> PlanFold.Response:
+             wait_for_keypoints: bool = True, retry_refused: float = 0.0) -> PlanFold.Response:
         """Call /plan_fold; TimeoutError when the planner does not answer. With
         wait_for_keypoints, a refusal because the planner has no keypoints yet is retried
-        until the timeout (the planner may start after the keypoints were published)."""
+        until the timeout (the planner may start after the keypoints were published);
+        a goal refused by trajectory_node (e.g. still finishing the previous fold) is
+        retried for retry_refused seconds."""
         deadline = time.monotonic() + timeout
+        refused_until = time.monotonic() + retry_refused
         while True:
             resp = self._plan_once(fold_name, execute, max(0.1, deadline - time.monotonic()))
-            if resp.success or not wait_for_keypoints or "no keypoints" not in resp.message \
-                    or time.monotonic() > deadline:
+            now = time.monotonic()
+            retry = (wait_for_keypoints and "no keypoints" in resp.message and now < deadline) or \
+                ("refused" in resp.message and now < min(refused_until, deadline))
+            if resp.success or not retry:
                 return resp
             time.sleep(0.2)
 
