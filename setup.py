@@ -1,4 +1,5 @@
 """ament_python package clothfold_ros: `ros2 run clothfold_ros <node>` after colcon build."""
+import os
 from glob import glob
 
 from setuptools import find_packages, setup
@@ -22,6 +23,10 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/launch", glob("launch/*.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.csv")),
+    ]
+    + [  # lookup tables: config/tables/<scenario>/* -> share/clothfold_ros/config/tables/<scenario>/
+        (f"share/{PACKAGE}/{d}", sorted(f for f in glob(f"{d}/*") if os.path.isfile(f)))
+        for d in sorted(glob("config/tables/*/")) + ["config/tables"]
     ],
     package_data={PACKAGE: ["py.typed"]},
     install_requires=["setuptools"],
