@@ -24,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--backend", choices=("sim", "kinematic"), default="sim", help="robot backend (default sim)")
     p.add_argument("--fold", choices=FOLD_NAMES, default="left_sleeve", help="the fold (default left_sleeve)")
     p.add_argument("--sequence", action="store_true", help="fold the whole sequence: " + ", ".join(FOLD_SEQUENCE))
-    p.add_argument("--max-area", type=float, default=1e-3, help="sim mesh max triangle area (m^2; default 1e-3)")
+    p.add_argument("--max-area", type=float, default=5e-4, help="sim mesh max triangle area (m^2; default 5e-4, about 1.2K triangles)")
     p.add_argument("--selection", choices=("table", "parameter"), default=None,
                    help="(height ratio, tilt) from the lookup table or the parameters (default: config file)")
     p.add_argument("--bags", type=Path, default=Path("bags"), help="bag directory (default bags/)")
