@@ -150,10 +150,9 @@ class ContactModel:
         steps for nearly parallel edge pairs, which stalls Newton); the table plane is
         checked here in closed form (ipctk's step-size query does not look at planes).
         """
-        a, b = np.asfortranarray(x0), np.asfortranarray(x1)
         if candidates is None:
-            candidates = ipctk.Candidates()
-            candidates.build(self.mesh, a, b, self.barrier_dhat + self.barrier_dmin)
+            candidates = self.sweep_candidates(x0, x1)
+        a, b = np.asfortranarray(x0), np.asfortranarray(x1)
         self_ccd = candidates.compute_collision_free_stepsize(
             self.mesh, a, b, min_distance=self.ccd_min_distance, narrow_phase_ccd=self.narrow_phase
         )
