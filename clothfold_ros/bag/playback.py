@@ -1,7 +1,20 @@
-"""Playback timing (pure): bag log time <-> wall-clock offsets for a rate factor."""
+"""Playback (pure): the replay options and bag log time <-> wall-clock offsets for a rate factor."""
 from __future__ import annotations
 
+import argparse
 from dataclasses import dataclass
+
+
+def add_playback_arguments(p: argparse.ArgumentParser) -> None:
+    """The replay options shared by ``player_node`` and ``clothfold replay``."""
+    p.add_argument("bag", help="bag: x.mcap or a rosbag2 bag directory")
+    p.add_argument("--rate", "-r", type=float, default=1.0, help="rate factor (2 = twice as fast)")
+    p.add_argument("--topics", nargs="*", default=None, help="only these topics (default: all)")
+    p.add_argument("--loop", "-l", action="store_true", help="repeat until interrupted")
+    p.add_argument("--start-offset", type=float, default=0.0, help="skip the first S seconds of the bag")
+    p.add_argument("--clock", type=float, nargs="?", const=40.0, default=None, metavar="HZ",
+                   help="publish /clock with bag time at HZ (default 40) and before each message")
+    p.add_argument("--delay", type=float, default=1.0, help="wait S seconds for discovery before playing")
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.utilities import remove_ros_args
 
 from ..bag import BagError, BagReader, Qos, playback_qos
-from ..bag.playback import PlaybackClock
+from ..bag.playback import PlaybackClock, add_playback_arguments
 from .recorder_node import message_class
 
 
@@ -118,27 +118,24 @@ class Player:
 
 def build_parser(prog: str = "player_node") -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=prog, description="Republish a bag with its original timing and QoS.")
-    p.add_argument("bag", help="bag: x.mcap or a rosbag2 bag directory")
-    p.add_argument("--rate", "-r", type=float, default=1.0, help="rate factor (2 = twice as fast)")
-    p.add_argument("--topics", nargs="*", default=None, help="only these topics (default: all)")
-    p.add_argument("--loop", "-l", action="store_true", help="repeat until interrupted")
-    p.add_argument("--start-offset", type=float, default=0.0, help="skip the first S seconds of the bag")
-    p.add_argument("--clock", type=float, nargs="?", const=40.0, default=None, metavar="HZ",
-                   help="publish /clock with bag time at HZ (default 40) and before each message")
-    p.add_argument("--delay", type=float, default=1.0, help="wait S seconds for discovery before playing")
+    add_playback_arguments(p)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     full = list(sys.argv if argv is None else ["player_node", *argv])
-    args = build_parser().parse_args(remove_ros_args(full)[1:])
+    return play(build_parser().parse_args(remove_ros_args(full)[1:]), full)
+
+
+def play(args: argparse.Namespace, rcl_args: list[str] | None = None) -> int:
+    """Replay the bag named by parsed playback options (add_playback_arguments); exit code."""
     prog = "clothfold replay"
     try:
         bag = BagReader(args.bag)
     except BagError as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 1
-    rclpy.init(args=full)
+    rclpy.init(args=rcl_args)
     node = rclpy.create_node("clothfold_player")
     code = 0
     try:
