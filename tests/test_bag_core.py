@@ -13,8 +13,8 @@ from mcap.reader import make_reader
 from rclpy.serialization import serialize_message
 from rosbags.rosbag2 import Reader as RosbagsReader
 from rosbags.rosbag2.metadata import parse_qos as rosbags_parse_qos
-from rosbags.rosbag2.storage_mcap import McapReader as RosbagsMcap
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from rosbags_decode import rosbags_messages
 
 from clothfold_ros.bag import BagError, BagReader, BagWriter, Qos, dump_qos, message_definition, parse_qos
 from clothfold_ros.bag.definitions import SEPARATOR
@@ -113,17 +113,8 @@ def _rb_value(v):
 
 
 def _decode_all_with_rosbags(path: Path):
-    """Decode every message of a single .mcap with an EMPTY type store + the bag's definitions."""
-    store = get_typestore(Stores.EMPTY)
-    reader = RosbagsMcap(path)
-    reader.open()
-    try:
-        for c in reader.connections:
-            store.register(get_types_from_msg(c.msgdef.data, c.msgtype))
-        return [(c.topic, t, _rb_value(store.deserialize_cdr(raw, c.msgtype)))
-                for c, t, raw in reader.messages(reader.connections)]
-    finally:
-        reader.close()
+    """Every message of a single .mcap decoded by rosbags (empty type store), as plain values."""
+    return [(topic, t, _rb_value(msg)) for topic, t, msg in rosbags_messages(path)]
 
 
 def test_definition_layout_matches_rosbag2():

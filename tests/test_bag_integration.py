@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 from rclpy.serialization import serialize_message
-from rosbags.rosbag2.storage_mcap import McapReader as RosbagsMcap
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from rosbags_decode import rosbags_messages
 
 from clothfold_ros.bag import BagError, BagReader, BagWriter, Qos, message_definition, recover
 
@@ -141,19 +141,11 @@ def publish(procs, env, tmp_path: Path, n: int = N, period: float = 0.005) -> No
 
 
 def decode_with_rosbags(path: Path) -> dict[str, list]:
-    """topic -> decoded messages, using an empty type store and the bag's own definitions."""
-    store = get_typestore(Stores.EMPTY)
-    reader = RosbagsMcap(path)
-    reader.open()
-    try:
-        for c in reader.connections:
-            store.register(get_types_from_msg(c.msgdef.data, c.msgtype))
-        out: dict[str, list] = {}
-        for c, _, raw in reader.messages(reader.connections):
-            out.setdefault(c.topic, []).append(store.deserialize_cdr(raw, c.msgtype))
-        return out
-    finally:
-        reader.close()
+    """topic -> messages decoded by rosbags (empty type store, the bag's own definitions)."""
+    out: dict[str, list] = {}
+    for topic, _, msg in rosbags_messages(path):
+        out.setdefault(topic, []).append(msg)
+    return out
 
 
 def test_recorder_sigint_writes_complete_bag(procs, ros_env, tmp_path):
