@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 
+from pipeline_helpers import running_pipeline
+
 from clothfold_ros.garment import make_shirt
-from clothfold_ros.launcher import Launcher
 from clothfold_ros.materials import material
 from clothfold_ros.ros_conversions import fold_spec_from_msg, keypoints_from_msg
 from clothfold_ros.sim.runner import run_fold
@@ -20,18 +21,12 @@ MAX_AREA = 5e-3  # ~120 triangles: a few seconds per fold on one core
 
 @pytest.fixture
 def pipeline(monkeypatch):
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(DOMAIN))
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    from clothfold_ros.nodes.pipeline_client import PipelineClient
-
-    with Launcher(domain_id=DOMAIN, echo=False) as launcher:
-        launcher.start_pipeline("sim", overrides={
-            "cloth_sim_node": {"max_area": MAX_AREA, "max_loss": 10.0},
-            "fold_planner_node": {"selection": "parameter", "height_ratio": 0.7, "tilt_deg": 20.0},
-        })
-        with PipelineClient("test_pipeline_sim") as client:
-            yield launcher, client
-        launcher.check_alive()  # no node crashed during the test
+    overrides = {
+        "cloth_sim_node": {"max_area": MAX_AREA, "max_loss": 10.0},
+        "fold_planner_node": {"selection": "parameter", "height_ratio": 0.7, "tilt_deg": 20.0},
+    }
+    with running_pipeline(monkeypatch, DOMAIN, "sim", overrides, "test_pipeline_sim") as pair:
+        yield pair  # a node that died fails the test
 
 
 def test_sim_pipeline_equals_run_fold_and_tracks_the_cloth(pipeline):

@@ -1,0 +1,25 @@
+"""Start the whole pipeline as separate processes on a test's own ROS domain (localhost only)."""
+from __future__ import annotations
+
+from contextlib import contextmanager
+from typing import Iterator
+
+from clothfold_ros.launcher import Launcher
+
+
+@contextmanager
+def running_pipeline(monkeypatch, domain: int, backend: str, overrides: dict[str, dict],
+                     client_name: str) -> Iterator[tuple]:
+    """(launcher, PipelineClient) for `backend` ("sim" or "kinematic") with parameter overrides.
+
+    Every process is stopped on exit; a node that died during the test fails it.
+    """
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    from clothfold_ros.nodes.pipeline_client import PipelineClient
+
+    with Launcher(domain_id=domain, echo=False) as launcher:
+        launcher.start_pipeline(backend, overrides=overrides)
+        with PipelineClient(client_name) as client:
+            yield launcher, client
+        launcher.check_alive()
