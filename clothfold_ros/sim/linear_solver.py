@@ -33,10 +33,16 @@ class SPDSolver:
             if a.shape[0] != self._n:  # new system size: drop the old factorization
                 self._pardiso.free_memory(everything=True)
                 self._n = a.shape[0]
+            # One MKL thread for this call: a threaded factorization sums in a run-dependent
+            # order, which made folds of ~3K triangles differ from run to run (the simulator
+            # promises bit-for-bit determinism). Thread-local, so nothing else is affected.
+            previous = self._pardiso.libmkl.MKL_Set_Num_Threads_Local(1)
             try:
                 x = self._pardiso.solve(a, rhs)
             except pypardiso.pardiso_wrapper.PyPardisoError as err:
                 raise np.linalg.LinAlgError(f"Pardiso failed: {err}") from err
+            finally:
+                self._pardiso.libmkl.MKL_Set_Num_Threads_Local(previous)
             return np.asarray(x).ravel()
         full = upper + sp.triu(upper, k=1).T
         return spla.spsolve(full.tocsc(), rhs)
