@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from clothfold_ros.lookup.sweep import SweepSettings, fan_points, load_final, run_sweep
-from clothfold_ros.lookup.table import load_table, read_runs, write_table
+from clothfold_ros.lookup.sweep_dir import read_runs
+from clothfold_ros.lookup.table import load_table, write_table
 
 TINY = dict(max_area=1e-2)  # ~60 vertices: about 1 s per 1 s fold on one core
 POINTS = [70, 96, 133, 110, 84, 120]  # successful fan points of the tiny T1 sweep

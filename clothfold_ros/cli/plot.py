@@ -16,8 +16,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..lookup.plot import plot_best_worst, plot_landscape
+    from ..lookup.sweep_dir import BEST_WORST_PNG, LANDSCAPE_PNG, table_dirs
 
-    names = args.scenarios or sorted(p.parent.name for p in args.tables.glob("*/table.csv"))
+    names = args.scenarios or [d.name for d in table_dirs(args.tables)]
     if not names:
         print(f"clothfold plot: no tables under {args.tables}", file=sys.stderr)
         return 2
@@ -26,8 +27,8 @@ def run(args: argparse.Namespace) -> int:
         d = args.tables / n
         out = args.out / n if args.out else d
         try:
-            print(plot_landscape(d, out / "landscape.png"))
-            print(plot_best_worst(d, out / "best_worst.png"))
+            print(plot_landscape(d, out / LANDSCAPE_PNG))
+            print(plot_best_worst(d, out / BEST_WORST_PNG))
         except (FileNotFoundError, ValueError) as err:
             print(f"clothfold plot: {n}: {err}", file=sys.stderr)
             rc = 1

@@ -14,7 +14,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=Path("config/tables"),
                    help="tables root; the sweep writes <out>/<scenario>/ (default config/tables)")
     p.add_argument("--points", default="all", help="'all' (134), 'alternate', 'every:R:T' or comma list of fan indices")
-    p.add_argument("--max-area", type=float, default=4e-3, help="max triangle area (m^2); 5e-5 = full resolution")
+    p.add_argument("--max-area", type=float, default=5e-4,
+                   help="max triangle area (m^2); default 5e-4 (1.2K triangles, the shipped tables), 5e-5 = full")
     p.add_argument("--dt", type=float, default=0.04, help="time step (s)")
     p.add_argument("--settle", type=float, default=0.2, help="settle time after release (s)")
     p.add_argument("--newton-tol", type=float, default=1e-3, help="Newton stop RMS(|dx|)/dt (m/s)")
@@ -28,8 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..lookup.scenario import scenario
-    from ..lookup.sweep import SweepSettings, fan_points, run_sweep
-    from ..lookup.table import write_table
+    from ..lookup.sweep import SweepSettings, fan_points, finish, run_sweep
 
     try:
         sc = scenario(args.scenario)
@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, FileNotFoundError, RuntimeError) as err:
         print(f"clothfold sweep: {err}", file=sys.stderr)
         return 2
-    table = write_table(d, command, points)
+    table = finish(d, command, points)
     failed = sum(not r["success"] for r in rows)
     print(f"{sc.name}: {len(rows)} runs this call ({failed} failed) -> {table}")
     return 0

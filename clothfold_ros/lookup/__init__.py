@@ -1,7 +1,8 @@
-"""Lookup tables over the 134-point trajectory fan (SPEC sections 6, 8, 9).
+"""Lookup tables over the 134-point trajectory fan (docs/method.md sections 6, 8, 9).
 
 - `scenario`: the 13 study scenarios and the scenario features (shared with run time)
-- `sweep`: the resumable sweep engine (local process pool or Ray)
+- `sweep_dir`: the sweep directory's file layout (the only module that knows it)
+- `sweep`: the resumable sweep engine (local process pool or Ray); `finish` writes the table
 - `table`: tidy CSV tables with provenance
 - `select`: robust (neighbourhood-smoothed) choice from the nearest scenario(s)
 - `regret`: leave-one-scenario-out evaluation of the selection

@@ -6,9 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .select import smoothed_loss
-from .table import FINALS_NPZ, load_table
 from ..trajectory import fan
+from . import sweep_dir as layout
+from .select import smoothed_loss
+from .table import load_table
 
 
 def _plt():
@@ -18,6 +19,15 @@ def _plt():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def _save(fig, out: str | Path, dpi: int) -> Path:
+    """Write `fig` to the PNG `out` (folders created) and close it."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=dpi, bbox_inches="tight")
+    _plt().close(fig)
+    return out
 
 
 def plot_landscape(table_dir: str | Path, out: str | Path) -> Path:
@@ -46,27 +56,19 @@ def plot_landscape(table_dir: str | Path, out: str | Path) -> Path:
     res = t.provenance.get("resolution", {}).get("max_area_m2")
     ax.set_title(f"{t.name}: loss landscape (max_area {res} m$^2$)", fontsize=10)
     ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.05), fontsize=7, ncol=2)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    return out
+    return _save(fig, out, 110)
 
 
 def plot_best_worst(table_dir: str | Path, out: str | Path) -> Path:
     """Top-down views of the best and worst successful final states over the target."""
     plt = _plt()
-    d = Path(table_dir)
-    t = load_table(d)
-    if not (d / FINALS_NPZ).exists():
-        raise FileNotFoundError(f"no final states ({FINALS_NPZ}) in {d}")
+    t = load_table(table_dir)
     ok = np.flatnonzero(t.success & np.isfinite(t.loss))
     if len(ok) == 0:
         raise ValueError(f"table {t.name!r} has no successful run to draw")
     picks = [("best", ok[np.argmin(t.loss[ok])]), ("worst", ok[np.argmax(t.loss[ok])])]
-    with np.load(d / FINALS_NPZ) as z:
-        tri, target = z["triangles"], z["target"]
-        finals = {lab: z[f"p{int(t.point[k]):03d}"] for lab, k in picks}
+    tri, target, by_point = layout.read_packed(table_dir, [int(t.point[k]) for _, k in picks])
+    finals = {lab: by_point[int(t.point[k])] for lab, k in picks}
     fig, axes = plt.subplots(1, 3, figsize=(12, 4.2), sharex=True, sharey=True)
     panels = [("target", target, None)] + [(lab, finals[lab], k) for lab, k in picks]
     vmax = max(float(v[:, 2].max()) for _, v, _ in panels) * 1e3
@@ -83,8 +85,4 @@ def plot_best_worst(table_dir: str | Path, out: str | Path) -> Path:
         ax.set_xlabel("x (m)")
     axes[0].set_ylabel("y (m)")
     fig.colorbar(tc, ax=axes, label="mean triangle height (mm)", shrink=0.8)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=100, bbox_inches="tight")
-    plt.close(fig)
-    return out
+    return _save(fig, out, 100)

@@ -1,51 +1,36 @@
 """Resumable sweep of one scenario over fan points on the headless simulator.
 
-A sweep directory holds `settings.json` (what is swept, checked on resume), `runs.jsonl`
-(one line per finished trajectory, appended and fsynced as each run ends, failures
-included with their reason) and `finals/pNNN.npy` (final vertices, float32, m). A killed
-sweep restarted with the same settings skips the points already in `runs.jsonl`.
+Each finished trajectory is appended to the sweep directory's run log as it ends
+(failures included with their reason), so a killed sweep restarted with the same
+settings skips the points already done. The directory's files are read and written
+through `sweep_dir` (the one owner of the layout); `finish` turns a sweep into a table.
 Runs go to a local process pool (default: one worker per core) or to Ray.
 """
 from __future__ import annotations
 
-import json
-import math
 import os
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
+from ..garment import Garment, make_shirt
+from ..loss import fold_target
+from ..materials import Material, material
+from ..sim import runner  # runner.run_fold looked up per call (tests patch it)
+from ..sim.config import SimConfig
+from ..sim.runner import flat_start
 from ..trajectory import fan
+from . import sweep_dir as layout
 from .scenario import Scenario, features, grip_distance, scenario, spec_for
+from .sweep_dir import SweepSettings, load_final, read_start
+from .table import write_table
 
-RUNS = "runs.jsonl"
-SETTINGS = "settings.json"
-START = "start.npz"
-FINALS = "finals"
-
-
-@dataclass(frozen=True)
-class SweepSettings:
-    """Everything that determines a sweep's results (SI units: m^2, s, m/s)."""
-
-    scenario: str
-    max_area: float = 3e-3
-    dt: float = 0.04
-    settle_time: float = 0.2
-    newton_tol: float = 1e-3
-    max_newton_iterations: int = 80
-
-    def __post_init__(self) -> None:
-        scenario(self.scenario)
-        for k in ("max_area", "dt", "newton_tol"):
-            if not (math.isfinite(getattr(self, k)) and getattr(self, k) > 0):
-                raise ValueError(f"{k} must be > 0, got {getattr(self, k)}")
-        if not self.settle_time >= 0:
-            raise ValueError(f"settle_time must be >= 0 s, got {self.settle_time}")
+__all__ = ["Job", "Progress", "SweepSettings", "fan_points", "finish", "load_final", "prepare_start", "run_job",
+           "run_sweep", "stage_target"]
 
 
 @dataclass(frozen=True)
@@ -99,10 +84,15 @@ def fan_points(selection: str = "all") -> np.ndarray:
     return idx
 
 
-def _config(s: SweepSettings):
-    from ..sim.config import SimConfig
-
+def _config(s: SweepSettings) -> SimConfig:
     return SimConfig(dt=s.dt, newton_tol=s.newton_tol, max_newton_iterations=s.max_newton_iterations)
+
+
+def _scene(sc: Scenario, max_area: float) -> tuple[Material, Garment, np.ndarray]:
+    """(material, garment meshed at max_area, its flat start state) of a scenario."""
+    mat = material(sc.material)
+    garment = make_shirt(sc.shape, max_area=max_area)
+    return mat, garment, flat_start(garment, mat)
 
 
 def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
@@ -111,20 +101,10 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
     Returns (row, final vertices (N, 3) float32 or None). Never raises for a failed
     simulation: the row then has success False and the reason.
     """
-    from ..garment import make_shirt
-    from ..materials import material
-    from ..sim.runner import flat_start, run_fold
-
     s = job.settings
     sc = scenario(s.scenario)
-    mat = material(sc.material)
-    garment = make_shirt(sc.shape, max_area=s.max_area)
-    flat = flat_start(garment, mat)
-    if job.start_file:
-        with np.load(job.start_file) as z:
-            x, base = z["vertices"].astype(float), z["target"].astype(float)
-    else:
-        x, base = flat, None
+    mat, garment, flat = _scene(sc, s.max_area)
+    x, base = read_start(job.start_file) if job.start_file else (flat, None)
     kp_start = garment.keypoints(x)
     row: dict = {"point": job.point, "height_ratio": job.height_ratio, "tilt_deg": job.tilt_deg}
     wall, newton, steps, reason, loss, ok = 0.0, 0, 0, "", float("nan"), True
@@ -132,8 +112,8 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
     for fold in sc.folds:
         try:
             spec, _ = spec_for(fold, kp_start, garment.keypoints(flat))
-            out = run_fold(garment, spec, mat, sc.friction, job.height_ratio, job.tilt_deg, sc.duration, s.dt,
-                           s.settle_time, vertices=x, target_base=base, config=_config(s))
+            out = runner.run_fold(garment, spec, mat, sc.friction, job.height_ratio, job.tilt_deg, sc.duration,
+                                  s.dt, s.settle_time, vertices=x, target_base=base, config=_config(s))
         except Exception as err:  # a broken setup is recorded like a failed simulation
             ok, reason = False, f"{fold}: {type(err).__name__}: {err}"
             break
@@ -153,35 +133,26 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
 def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path | None) -> tuple[str | None, dict]:
     """Write start.npz for a sequence stage from the best successful run of the previous
     stage's sweep; return (path or None, scenario features + spec note)."""
-    from ..garment import make_shirt
-    from ..materials import material
-    from ..sim.runner import flat_start
-    from .table import read_runs, best_row
-
     sc = scenario(settings.scenario)
-    mat = material(sc.material)
-    garment = make_shirt(sc.shape, max_area=settings.max_area)
-    flat = flat_start(garment, mat)
+    _, garment, flat = _scene(sc, settings.max_area)
     info: dict = {}
     path = None
     if sc.after is None:
         x = flat
     else:
-        if previous_dir is None or not (previous_dir / RUNS).exists():
+        if previous_dir is None or not layout.has_runs(previous_dir):
             raise FileNotFoundError(f"scenario {sc.name!r} starts from {sc.after!r}: no sweep of it at {previous_dir}")
-        if (previous_dir / ".lock").exists() or not (previous_dir / "provenance.json").exists():
+        if not layout.is_finished(previous_dir):
             raise ValueError(f"scenario {sc.name!r} starts from {sc.after!r}, whose sweep in {previous_dir} "
                              f"is running or unfinished (no table written yet)")
-        prev = SweepSettings(**json.loads((previous_dir / SETTINGS).read_text()))
+        prev = layout.read_settings(previous_dir)
         if prev.max_area != settings.max_area:
             raise ValueError(f"{sc.after!r} was swept at max_area {prev.max_area}, this sweep uses {settings.max_area}")
-        best = best_row(read_runs(previous_dir / RUNS))
+        best = layout.best_row(layout.read_runs(previous_dir))
         if best is None:
             raise ValueError(f"scenario {sc.after!r} has no successful run to start {sc.name!r} from")
-        x = load_final(previous_dir, int(best["point"])).astype(float)
-        target = _stage_target(prev, previous_dir, garment)
-        path = str(sweep_dir / START)
-        np.savez_compressed(path, vertices=x, target=target)
+        x = layout.load_final(previous_dir, int(best["point"])).astype(float)
+        path = layout.write_start(sweep_dir, x, stage_target(previous_dir, garment))
         info.update(start_from=sc.after, start_point=int(best["point"]), start_loss_m=best["loss_m"])
     kp = garment.keypoints(x)
     spec, note = spec_for(sc.folds[0], kp, garment.keypoints(flat))
@@ -192,40 +163,14 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
     return path, info
 
 
-def load_final(sweep_dir: Path, point: int) -> np.ndarray:
-    """Final vertices (N, 3) float32 of fan point `point` of a sweep (per-run file or
-    the packed finals.npz)."""
-    p = Path(sweep_dir) / FINALS / f"p{point:03d}.npy"
-    if p.exists():
-        return np.load(p)
-    packed = Path(sweep_dir) / "finals.npz"
-    if packed.exists():
-        with np.load(packed) as z:
-            if f"p{point:03d}" in z:
-                return z[f"p{point:03d}"]
-    raise FileNotFoundError(f"no final state of point {point} in {sweep_dir}")
-
-
-def _start_path(sweep_dir: Path) -> str | None:
-    p = sweep_dir / START
-    return str(p) if p.exists() else None
-
-
-def _stage_target(prev: SweepSettings, prev_dir: Path, garment) -> np.ndarray:
-    """The composed target after the previous stage's folds (recomputed from specs)."""
-    from ..loss import fold_target
-    from ..materials import material
-    from ..sim.runner import flat_start
-
-    sc = scenario(prev.scenario)
+def stage_target(d: str | Path, garment: Garment) -> np.ndarray:
+    """The composed target (N, 3) m after the folds of the stage swept in `d`
+    (recomputed from its start state and the fold specs)."""
+    sc = scenario(layout.read_settings(d).scenario)
     mat = material(sc.material)
     flat = flat_start(garment, mat)
-    start = _start_path(prev_dir)
-    if start:
-        with np.load(start) as z:
-            x, base = z["vertices"].astype(float), z["target"].astype(float)
-    else:
-        x, base = flat, flat
+    start = layout.start_file(d)
+    x, base = read_start(start) if start else (flat, flat)
     kp = garment.keypoints(x)
     for fold in sc.folds:
         spec, _ = spec_for(fold, kp, garment.keypoints(flat))
@@ -233,33 +178,17 @@ def _stage_target(prev: SweepSettings, prev_dir: Path, garment) -> np.ndarray:
     return base
 
 
-def pending(sweep_dir: Path, points: Iterable[int]) -> list[int]:
-    """Fan points not yet recorded in runs.jsonl."""
-    from .table import read_runs
-
-    done = {int(r["point"]) for r in read_runs(sweep_dir / RUNS)} if (sweep_dir / RUNS).exists() else set()
-    return [int(p) for p in points if int(p) not in done]
-
-
-def _repair_log(path: Path) -> None:
-    """Drop a partial last line (a kill during the append) so new lines start clean."""
-    if not path.exists() or path.stat().st_size == 0:
-        return
-    data = path.read_bytes()
-    if not data.endswith(b"\n"):
-        path.write_bytes(data[: data.rfind(b"\n") + 1])
-
-
-def _append(sweep_dir: Path, row: dict, final: np.ndarray | None) -> None:
-    if final is not None:
-        (sweep_dir / FINALS).mkdir(exist_ok=True)
-        tmp = sweep_dir / FINALS / f".p{row['point']:03d}.npy"
-        np.save(tmp, final)
-        os.replace(tmp, sweep_dir / FINALS / f"p{row['point']:03d}.npy")
-    with open(sweep_dir / RUNS, "a") as f:
-        f.write(json.dumps(row) + "\n")
-        f.flush()
-        os.fsync(f.fileno())
+def finish(d: str | Path, command: str, points: list[int]) -> Path:
+    """Write the table (table.csv, provenance.json) of the sweep in `d` and pack its final
+    states into finals.npz; returns the table.csv path."""
+    settings = layout.read_settings(d)
+    _, garment, flat = _scene(scenario(settings.scenario), settings.max_area)
+    table = write_table(d, command, points)
+    start = layout.start_file(d)
+    x = read_start(start)[0] if start else flat
+    layout.pack_finals(d, garment.triangles, x, stage_target(d, garment),
+                       [int(r["point"]) for r in layout.read_runs(d)])
+    return table
 
 
 def _local(jobs: list[Job], workers: int) -> Iterator[tuple[dict, np.ndarray | None]]:
@@ -327,66 +256,28 @@ def run_sweep(settings: SweepSettings, sweep_dir: str | Path, points: Iterable[i
     """
     d = Path(sweep_dir)
     d.mkdir(parents=True, exist_ok=True)
-    with _Lock(d / ".lock"):
+    with layout.Lock(d):
         return _run_locked(settings, d, points, workers, ray_address, previous_dir, progress, on_row)
-
-
-class _Lock:
-    """One sweep per directory: a lock file holding the owner's pid (a stale lock of a
-    dead process is taken over)."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-
-    def __enter__(self) -> "_Lock":
-        for _ in range(2):
-            try:
-                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-                os.write(fd, str(os.getpid()).encode())
-                os.close(fd)
-                return self
-            except FileExistsError:
-                try:
-                    pid = int(self.path.read_text() or 0)
-                    os.kill(pid, 0)
-                except (ValueError, ProcessLookupError, FileNotFoundError):
-                    self.path.unlink(missing_ok=True)  # stale: its owner is gone
-                    continue
-                except PermissionError:
-                    pass
-                raise RuntimeError(f"another sweep (pid {pid}) is running in {self.path.parent}")
-        raise RuntimeError(f"could not lock {self.path.parent}")
-
-    def __exit__(self, *exc: object) -> None:
-        self.path.unlink(missing_ok=True)
 
 
 def _run_locked(settings: SweepSettings, d: Path, points: Iterable[int], workers: int | None,
                 ray_address: str | None, previous_dir: str | Path | None, progress: bool,
                 on_row: Callable[[dict], None] | None) -> list[dict]:
-    want = asdict(settings)
-    if (d / SETTINGS).exists():
-        have = json.loads((d / SETTINGS).read_text())
-        if have != want:
-            raise ValueError(f"{d} holds a sweep with other settings {have}; use another directory "
-                             f"(or delete it) to sweep {want}")
-    else:
-        (d / SETTINGS).write_text(json.dumps(want, indent=1))
-    _repair_log(d / RUNS)
-    info_path = d / "scenario.json"
-    if not info_path.exists():
-        start, info = prepare_start(settings, d, None if previous_dir is None else Path(previous_dir))
-        info_path.write_text(json.dumps(info, indent=1))
-    start = _start_path(d)
+    layout.claim_settings(d, settings)
+    layout.repair_log(d)
+    if layout.read_info(d) is None:
+        _, info = prepare_start(settings, d, None if previous_dir is None else Path(previous_dir))
+        layout.write_info(d, info)
+    start = layout.start_file(d)
     f = fan()
-    todo = pending(d, points)
+    todo = layout.pending(d, points)
     jobs = [Job(settings, p, float(f[p, 0]), float(f[p, 1]), start) for p in todo]
     bar = Progress(len(jobs), settings.scenario, progress)
     n_workers = workers or len(os.sched_getaffinity(0))
     it = _ray(jobs, ray_address, n_workers) if ray_address else _local(jobs, n_workers)
     out = []
     for row, final in it:
-        _append(d, row, final)
+        layout.append_run(d, row, final)
         out.append(row)
         bar.update(bool(row["success"]))
         if on_row:

@@ -1,57 +1,31 @@
 """Tidy lookup tables: one CSV row per simulated fan point, with provenance.
 
-A table directory (one per scenario, e.g. config/tables/shape1/) holds
+`write_table` turns a sweep directory (one per scenario, e.g. config/tables/shape1/;
+its files are listed in `sweep_dir`) into
 - `table.csv`: scenario, fold(s), features (scenario.FEATURE_NAMES), point, height_ratio,
   tilt_deg, loss_m (NaN for failures), success, reason, wall_time_s, newton_iterations,
   steps, max_area_m2, vertices;
-- `provenance.json`: git commit, command, resolution, fan points, date, coverage;
-- `finals.npz`: triangles, start and target vertices and each run's final vertices
-  (float32, m) keyed `pNNN`;
-- the sweep's own `settings.json`, `scenario.json` and `runs.jsonl`.
+- `provenance.json`: git commit, command, resolution, fan points, date, coverage.
+`load_table` / `load_tables` read them back.
 """
 from __future__ import annotations
 
 import csv
 import datetime as _dt
 import json
-import math
 import subprocess
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..garment import make_shirt
+from . import sweep_dir as layout
 from .scenario import FEATURE_NAMES, scenario
+from .sweep_dir import PROVENANCE, TABLE
 
-TABLE = "table.csv"
-PROVENANCE = "provenance.json"
-FINALS_NPZ = "finals.npz"
 COLUMNS = ("scenario", "folds", "shape", "material", *FEATURE_NAMES, "point", "height_ratio", "tilt_deg", "loss_m",
            "success", "reason", "wall_time_s", "newton_iterations", "steps", "max_area_m2", "vertices")
-
-
-def read_runs(path: str | Path) -> list[dict]:
-    """Rows of a runs.jsonl; a partial last line (killed mid-write) is ignored. Later
-    duplicates of a point (none in a healthy log) replace earlier ones."""
-    rows: dict[int, dict] = {}
-    lines = Path(path).read_text().split("\n")
-    for i, line in enumerate(lines):
-        if not line.strip():
-            continue
-        try:
-            r = json.loads(line)
-        except json.JSONDecodeError:
-            if i == len(lines) - 1:
-                continue  # the partial tail of a killed append
-            raise ValueError(f"{path}:{i + 1}: broken line") from None
-        rows[int(r["point"])] = r
-    return [rows[k] for k in sorted(rows)]
-
-
-def best_row(rows: list[dict]) -> dict | None:
-    """The successful row of least loss (None if none succeeded)."""
-    ok = [r for r in rows if r["success"] and math.isfinite(r["loss_m"])]
-    return min(ok, key=lambda r: (r["loss_m"], r["point"])) if ok else None
 
 
 @dataclass
@@ -91,19 +65,16 @@ def git_commit(repo: str | Path = ".") -> str:
         return "unknown"
 
 
-def write_table(sweep_dir: str | Path, command: str, points: list[int], pack: bool = True) -> Path:
-    """Build table.csv + provenance.json (+ finals.npz) from a sweep directory."""
-    from ..garment import make_shirt
-    from ..materials import material
-    from ..sim.runner import flat_start
-    from .sweep import FINALS, RUNS, SETTINGS, START, load_final
-
+def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
+    """Build table.csv + provenance.json from a sweep directory; returns the CSV path."""
     d = Path(sweep_dir)
-    settings = json.loads((d / SETTINGS).read_text())
-    info = json.loads((d / "scenario.json").read_text())
+    settings = asdict(layout.read_settings(d))
+    info = layout.read_info(d)
+    if info is None:
+        raise FileNotFoundError(f"{d} holds no sweep ({layout.SCENARIO_INFO} missing)")
     sc = scenario(settings["scenario"])
     garment = make_shirt(sc.shape, max_area=settings["max_area"])
-    rows = read_runs(d / RUNS)
+    rows = layout.read_runs(d)
     with open(d / TABLE, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COLUMNS)
         w.writeheader()
@@ -117,7 +88,7 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int], pack: bo
                         "max_area_m2": settings["max_area"], "vertices": len(garment.vertices)})
     done = {int(r["point"]) for r in rows}
     missing = sorted(set(points) - done)
-    best = best_row(rows)
+    best = layout.best_row(rows)
     prov = {
         "scenario": sc.as_dict(), "settings": settings, "features": info["features"],
         "spec_note": info.get("spec_note", ""), "start_from": info.get("start_from"),
@@ -132,32 +103,7 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int], pack: bo
         "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
     }
     (d / PROVENANCE).write_text(json.dumps(prov, indent=1))
-    if pack:
-        mat = material(sc.material)
-        arrays = {"triangles": garment.triangles.astype(np.int32)}
-        if (d / START).exists():
-            with np.load(d / START) as z:
-                arrays["start"], base = z["vertices"].astype(np.float32), z["target"]
-        else:
-            arrays["start"] = flat_start(garment, mat).astype(np.float32)
-        arrays["target"] = _final_target(d, garment).astype(np.float32)
-        for p in sorted(done):
-            try:
-                arrays[f"p{p:03d}"] = load_final(d, p)
-            except FileNotFoundError:
-                pass  # failed before any fold finished: no final state
-        np.savez_compressed(d / FINALS_NPZ, **arrays)
-        for p in (d / FINALS).glob("*.npy") if (d / FINALS).exists() else []:
-            p.unlink()
-        if (d / FINALS).exists():
-            (d / FINALS).rmdir()
     return d / TABLE
-
-
-def _final_target(d: Path, garment) -> np.ndarray:
-    from .sweep import SweepSettings, _stage_target
-
-    return _stage_target(SweepSettings(**json.loads((d / "settings.json").read_text())), d, garment)
 
 
 def load_table(table_dir: str | Path) -> Table:
@@ -189,7 +135,7 @@ def load_tables(root: str | Path) -> dict[str, Table]:
     r = Path(root)
     if not r.is_dir():
         raise FileNotFoundError(f"lookup table directory {r} does not exist")
-    tables = {t.name: t for t in (load_table(p.parent) for p in sorted(r.glob(f"*/{TABLE}")))}
+    tables = {t.name: t for t in (load_table(p) for p in layout.table_dirs(r))}
     if not tables:
         raise FileNotFoundError(f"no lookup tables (*/{TABLE}) under {r}")
     return tables

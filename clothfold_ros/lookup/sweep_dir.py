@@ -1,0 +1,265 @@
+"""The sweep directory: the one module that knows its file layout.
+
+A sweep of one scenario and the lookup table made from it share one directory
+(e.g. config/tables/shape1/):
+
+| file | written by | content |
+|---|---|---|
+| `settings.json` | sweep, first call | `SweepSettings` (checked on every resume) |
+| `scenario.json` | sweep, first call | features and spec note of the start state (`sweep.prepare_start`) |
+| `start.npz` | sweep, sequence stages only | start `vertices` and `target` (the previous stage's target), m |
+| `runs.jsonl` | sweep, one line per finished run | the resume state: row of each fan point, failures included |
+| `finals/pNNN.npy` | sweep, before its runs.jsonl line | final vertices of fan point NNN, float32, m |
+| `finals.npz` | `pack_finals` | `triangles`, `start`, `target` and every `pNNN` (replaces finals/) |
+| `table.csv`, `provenance.json` | `table.write_table` | the tidy table and its provenance |
+| `landscape.png`, `best_worst.png` | `plot` | figures |
+| `.lock` | sweep, while running | owner pid |
+
+Everything else (the sweep engine, the table format, plots) reads and writes these
+files through this module. Pure: numpy and the standard library only.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .scenario import scenario
+
+SETTINGS = "settings.json"
+SCENARIO_INFO = "scenario.json"
+START = "start.npz"
+RUNS = "runs.jsonl"
+FINALS = "finals"
+FINALS_NPZ = "finals.npz"
+TABLE = "table.csv"
+PROVENANCE = "provenance.json"
+LANDSCAPE_PNG = "landscape.png"
+BEST_WORST_PNG = "best_worst.png"
+LOCK = ".lock"
+
+
+@dataclass(frozen=True)
+class SweepSettings:
+    """Everything that determines a sweep's results (SI units: m^2, s, m/s)."""
+
+    scenario: str
+    max_area: float = 3e-3
+    dt: float = 0.04
+    settle_time: float = 0.2
+    newton_tol: float = 1e-3
+    max_newton_iterations: int = 80
+
+    def __post_init__(self) -> None:
+        scenario(self.scenario)
+        for k in ("max_area", "dt", "newton_tol"):
+            if not (math.isfinite(getattr(self, k)) and getattr(self, k) > 0):
+                raise ValueError(f"{k} must be > 0, got {getattr(self, k)}")
+        if not self.settle_time >= 0:
+            raise ValueError(f"settle_time must be >= 0 s, got {self.settle_time}")
+
+
+def final_key(point: int) -> str:
+    """Name of fan point `point`'s final state: 'pNNN' (npz key, .npy stem)."""
+    return f"p{int(point):03d}"
+
+
+# -- settings and scenario info ----------------------------------------------------------
+def read_settings(d: str | Path) -> SweepSettings:
+    """The settings a sweep directory was made with."""
+    return SweepSettings(**json.loads((Path(d) / SETTINGS).read_text()))
+
+
+def claim_settings(d: str | Path, settings: SweepSettings) -> None:
+    """Write `settings` into a new sweep directory, or check they equal the ones there."""
+    p, want = Path(d) / SETTINGS, asdict(settings)
+    if p.exists():
+        have = json.loads(p.read_text())
+        if have != want:
+            raise ValueError(f"{d} holds a sweep with other settings {have}; use another directory "
+                             f"(or delete it) to sweep {want}")
+    else:
+        p.write_text(json.dumps(want, indent=1))
+
+
+def read_info(d: str | Path) -> dict | None:
+    """scenario.json (features, spec note, start state), None before the sweep wrote it."""
+    p = Path(d) / SCENARIO_INFO
+    return json.loads(p.read_text()) if p.exists() else None
+
+
+def write_info(d: str | Path, info: dict) -> None:
+    (Path(d) / SCENARIO_INFO).write_text(json.dumps(info, indent=1))
+
+
+def is_finished(d: str | Path) -> bool:
+    """True when a table has been written and no sweep is running in `d`."""
+    return (Path(d) / PROVENANCE).exists() and not (Path(d) / LOCK).exists()
+
+
+# -- start state of a sequence stage ------------------------------------------------------
+def start_file(d: str | Path) -> str | None:
+    """Path of the stage's start.npz (None: the scenario starts flat)."""
+    p = Path(d) / START
+    return str(p) if p.exists() else None
+
+
+def read_start(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(start vertices (N, 3), previous target (N, 3)) in m from a start.npz."""
+    with np.load(path) as z:
+        return z["vertices"].astype(float), z["target"].astype(float)
+
+
+def write_start(d: str | Path, vertices: np.ndarray, target: np.ndarray) -> str:
+    """Store a stage's start state; returns the file's path."""
+    p = str(Path(d) / START)
+    np.savez_compressed(p, vertices=vertices, target=target)
+    return p
+
+
+# -- the run log ----------------------------------------------------------------------------
+def read_runs(path: str | Path) -> list[dict]:
+    """Rows of a runs.jsonl (a file, or a sweep directory); a partial last line (killed
+    mid-write) is ignored. Later duplicates of a point (none in a healthy log) replace
+    earlier ones."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / RUNS
+    rows: dict[int, dict] = {}
+    lines = path.read_text().split("\n")
+    for i, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            r = json.loads(line)
+        except json.JSONDecodeError:
+            if i == len(lines) - 1:
+                continue  # the partial tail of a killed append
+            raise ValueError(f"{path}:{i + 1}: broken line") from None
+        rows[int(r["point"])] = r
+    return [rows[k] for k in sorted(rows)]
+
+
+def has_runs(d: str | Path) -> bool:
+    return (Path(d) / RUNS).exists()
+
+
+def best_row(rows: list[dict]) -> dict | None:
+    """The successful row of least loss (None if none succeeded)."""
+    ok = [r for r in rows if r["success"] and math.isfinite(r["loss_m"])]
+    return min(ok, key=lambda r: (r["loss_m"], r["point"])) if ok else None
+
+
+def pending(d: str | Path, points) -> list[int]:
+    """Fan points not yet recorded in the run log."""
+    done = {int(r["point"]) for r in read_runs(Path(d) / RUNS)} if has_runs(d) else set()
+    return [int(p) for p in points if int(p) not in done]
+
+
+def repair_log(d: str | Path) -> None:
+    """Drop a partial last line (a kill during the append) so new lines start clean."""
+    path = Path(d) / RUNS
+    if not path.exists() or path.stat().st_size == 0:
+        return
+    data = path.read_bytes()
+    if not data.endswith(b"\n"):
+        path.write_bytes(data[: data.rfind(b"\n") + 1])
+
+
+def append_run(d: str | Path, row: dict, final: np.ndarray | None) -> None:
+    """Record one finished run: its final vertices first, then its line (fsynced), so a
+    kill never leaves a logged run without its final state."""
+    d = Path(d)
+    if final is not None:
+        (d / FINALS).mkdir(exist_ok=True)
+        tmp = d / FINALS / f".{final_key(row['point'])}.npy"
+        np.save(tmp, final)
+        os.replace(tmp, d / FINALS / f"{final_key(row['point'])}.npy")
+    with open(d / RUNS, "a") as f:
+        f.write(json.dumps(row) + "\n")
+        f.flush()
+        os.fsync(f.fileno())
+
+
+# -- final states -----------------------------------------------------------------------------
+def load_final(d: str | Path, point: int) -> np.ndarray:
+    """Final vertices (N, 3) float32 of fan point `point` (per-run file or finals.npz)."""
+    p = Path(d) / FINALS / f"{final_key(point)}.npy"
+    if p.exists():
+        return np.load(p)
+    packed = Path(d) / FINALS_NPZ
+    if packed.exists():
+        with np.load(packed) as z:
+            if final_key(point) in z:
+                return z[final_key(point)]
+    raise FileNotFoundError(f"no final state of point {point} in {d}")
+
+
+def pack_finals(d: str | Path, triangles: np.ndarray, start: np.ndarray, target: np.ndarray,
+                points) -> Path:
+    """Write finals.npz (triangles, start, target and the final state of every point that
+    has one) and remove the per-run files."""
+    d = Path(d)
+    arrays = {"triangles": np.asarray(triangles).astype(np.int32), "start": np.asarray(start, dtype=np.float32),
+              "target": np.asarray(target, dtype=np.float32)}
+    for p in sorted(points):
+        try:
+            arrays[final_key(p)] = load_final(d, p)
+        except FileNotFoundError:
+            pass  # failed before any fold finished: no final state
+    np.savez_compressed(d / FINALS_NPZ, **arrays)
+    if (d / FINALS).exists():
+        for f in (d / FINALS).glob("*.npy"):
+            f.unlink()
+        (d / FINALS).rmdir()
+    return d / FINALS_NPZ
+
+
+def read_packed(d: str | Path, points) -> tuple[np.ndarray, np.ndarray, dict[int, np.ndarray]]:
+    """(triangles, target, {point: final vertices}) from finals.npz."""
+    p = Path(d) / FINALS_NPZ
+    if not p.exists():
+        raise FileNotFoundError(f"no final states ({FINALS_NPZ}) in {d}")
+    with np.load(p) as z:
+        return z["triangles"], z["target"], {int(k): z[final_key(k)] for k in points}
+
+
+# -- tables under a root ----------------------------------------------------------------------
+def table_dirs(root: str | Path) -> list[Path]:
+    """Sub-directories of `root` that hold a table.csv, sorted by name."""
+    return [p.parent for p in sorted(Path(root).glob(f"*/{TABLE}"))]
+
+
+# -- one sweep per directory --------------------------------------------------------------------
+class Lock:
+    """One sweep per directory: a lock file holding the owner's pid (a stale lock of a
+    dead process is taken over)."""
+
+    def __init__(self, d: str | Path) -> None:
+        self.path = Path(d) / LOCK
+
+    def __enter__(self) -> "Lock":
+        for _ in range(2):
+            try:
+                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+                os.write(fd, str(os.getpid()).encode())
+                os.close(fd)
+                return self
+            except FileExistsError:
+                try:
+                    pid = int(self.path.read_text() or 0)
+                    os.kill(pid, 0)
+                except (ValueError, ProcessLookupError, FileNotFoundError):
+                    self.path.unlink(missing_ok=True)  # stale: its owner is gone
+                    continue
+                except PermissionError:
+                    pass
+                raise RuntimeError(f"another sweep (pid {pid}) is running in {self.path.parent}")
+        raise RuntimeError(f"could not lock {self.path.parent}")
+
+    def __exit__(self, *exc: object) -> None:
+        self.path.unlink(missing_ok=True)
