@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -138,20 +138,36 @@ def _outward_sign(start: np.ndarray, end: np.ndarray, outward: np.ndarray) -> fl
     return 1.0 if side @ outward >= 0 else -1.0
 
 
+def _done(folds_done: Sequence[str] | None) -> frozenset[str]:
+    done = frozenset(folds_done or ())
+    unknown = sorted(done - set(FOLD_NAMES))
+    if unknown:
+        raise ValueError(f"unknown folds in folds_done: {', '.join(unknown)}; known folds: {', '.join(FOLD_NAMES)}")
+    return done
+
+
 def fold_spec(
     name: str,
     keypoints: Mapping[str, object],
     end_angle_deg: float = 175.0,
     end_height: float = 0.05,
+    folds_done: Sequence[str] | None = None,
 ) -> FoldSpec:
     """The fold `name` (FOLD_NAMES) from keypoint positions (name -> (3,) m, table frame).
 
-    Every fold of the sequence is planned from the flat shirt's keypoints (after the side
-    folds both hem corners lie near the centre line). The end pose is the start pose
-    rotated by end_angle_deg about the fold line (over the top), then moved to z =
-    end_height m.
+    folds_done: the folds already made on the shirt; the keypoints are then its visible
+    keypoints (`clothfold_ros.perception.visible`: after a side fold that side's hem corner
+    is the folded outline's corner on the crease, a quarter of the flat hem width in).
+    With the other side folded, a side fold line stays a quarter of the *flat* hem width
+    (4/3 of the visible one) in from its side; after both side folds the middle fold
+    grasps the visible hem corners, i.e. a quarter of the flat width in from each side,
+    where the study grasped. None or () = a flat shirt (the study planned every stage from
+    the flat keypoints, which gives the same lines and grasps on an ideally folded shirt).
+    The end pose is the start pose rotated by end_angle_deg about the fold line (over the
+    top), then moved to z = end_height m.
     """
     kind = fold_type(name)
+    done = _done(folds_done)
     if not (math.isfinite(end_angle_deg) and 0.0 < end_angle_deg <= 180.0):
         raise ValueError(f"end_angle_deg must be in (0, 180], got {end_angle_deg}")
     if not (math.isfinite(end_height) and end_height >= 0.0):
@@ -177,7 +193,11 @@ def fold_spec(
         bl, br = kp["bottom_left"], kp["bottom_right"]
         x_hat = _horizontal_unit(br - bl, f"{name}: hem")  # the shirt's +x (its right side)
         y_hat = np.cross(_UP, x_hat)  # the shirt's +y (toward the neck)
-        width = np.linalg.norm((br - bl)[:2])
+        sides_done = [s for s in ("left", "right") if f"{s}_side" in done]
+        # visible hem width -> flat hem width: each side fold hides a quarter of it
+        width = np.linalg.norm((br - bl)[:2]) / (1.0 - 0.25 * len(sides_done))
+        flat_left = bl - (width / 4 if "left" in sides_done else 0.0) * x_hat  # flat hem corners
+        flat_right = br + (width / 4 if "right" in sides_done else 0.0) * x_hat
         if kind == "side":
             side = name.split("_")[0]
             sgn = 1.0 if side == "right" else -1.0
@@ -186,11 +206,13 @@ def fold_spec(
             d = -sgn * y_hat  # grippers on the up x d side
             grips = [kp[f"armpit_{side}"], corner]
             centre = (bl + br + kp["neck_left"] + kp["neck_right"]) / 4
+            if sides_done:  # the flat shirt's centre: midway between the flat hem corners across
+                centre = (flat_left + flat_right) / 2 + ((centre - (bl + br) / 2) @ y_hat) * y_hat
             approach = [_horizontal_unit(centre - g, f"{name}: approach") for g in grips]
         else:
             line_point = ((kp["shoulder_left"] + kp["shoulder_right"]) / 2 + (bl + br) / 2) / 2
             d = -x_hat  # grippers (below the line) on the up x d side
-            grips = [bl + 0.25 * (br - bl), bl + 0.75 * (br - bl)]
+            grips = [flat_left + 0.25 * (flat_right - flat_left), flat_left + 0.75 * (flat_right - flat_left)]
             approach = [y_hat, y_hat]
         outward = [d * np.sign(d @ (grips[0] - grips[1])), d * np.sign(d @ (grips[1] - grips[0]))]
 
@@ -209,5 +231,5 @@ def fold_spec(
 
 
 def fold_sequence_specs(keypoints: Mapping[str, object], **kwargs: float) -> list[FoldSpec]:
-    """All FOLD_SEQUENCE specs from the flat shirt's keypoints."""
+    """All FOLD_SEQUENCE specs from the flat shirt's keypoints (as the study planned them)."""
     return [fold_spec(n, keypoints, **kwargs) for n in FOLD_SEQUENCE]

@@ -216,3 +216,25 @@ def test_all_shapes_plan_every_fold():
         for name in FOLD_SEQUENCE:
             spec = fold_spec(name, kp)
             assert all(spec.side_of_line(p.position) > 0.01 for p in spec.start_poses)
+
+
+def test_folds_done_keeps_the_flat_lines_and_grasps():
+    """With the folds done named, visible keypoints (hem corners on the side creases, a
+    quarter of the flat hem width in) give the flat shirt's side line and middle grasps."""
+    kp = keypoints()
+    hem_y = kp["bottom_left"][1]
+    left_done = {**kp, "bottom_left": np.array([-W / 4, hem_y, 0.0])}
+    spec = fold_spec("right_side", left_done, folds_done=["left_sleeve", "right_sleeve", "left_side"])
+    assert spec.line_point[0] == pytest.approx(W / 4)
+    np.testing.assert_allclose([p.matrix for p in spec.start_poses],
+                               [p.matrix for p in fold_spec("right_side", kp).start_poses], atol=1e-12)
+    assert fold_spec("right_side", left_done).line_point[0] == pytest.approx(W / 2 - 3 * W / 16)  # not told
+    both = {**left_done, "bottom_right": np.array([W / 4, hem_y, 0.0])}
+    spec = fold_spec("middle", both, folds_done=["left_side", "right_side"])
+    np.testing.assert_allclose([p.position for p in spec.start_poses], [[-W / 4, hem_y, 0], [W / 4, hem_y, 0]],
+                               atol=1e-12)
+    one = fold_spec("middle", left_done, folds_done=["left_side"])
+    np.testing.assert_allclose([p.position for p in one.start_poses], [[-W / 4, hem_y, 0], [W / 4, hem_y, 0]],
+                               atol=1e-12)
+    with pytest.raises(ValueError, match="unknown folds in folds_done: collar"):
+        fold_spec("middle", kp, folds_done=["collar"])
