@@ -1,4 +1,4 @@
-"""Fold specifications from shirt keypoints (SPEC section 5).
+"""Fold specifications from shirt keypoints (docs/method.md section 5).
 
 Frame: table frame, metres, z up. A fold line is a horizontal line (point + unit
 direction); the cloth on the grippers' side of the vertical plane through it is folded

@@ -1,4 +1,4 @@
-"""Polygonal shirt model and its triangle mesh (SPEC section 1).
+"""Polygonal shirt model and its triangle mesh (docs/method.md section 1).
 
 Frame: table frame, metres, z up; the flat shirt is centred at the origin with +x its
 right side and +y toward the neck. The 13 outline points are the first mesh vertices,
@@ -27,7 +27,7 @@ KEYPOINT_NAMES: tuple[str, ...] = (
     "bottom_left",
 )
 
-DEFAULT_MAX_AREA = 1.0 / 20000.0  # m^2, SPEC section 1
+DEFAULT_MAX_AREA = 1.0 / 20000.0  # m^2, the study's resolution (docs/method.md section 1)
 
 
 @dataclass(frozen=True)

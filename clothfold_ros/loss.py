@@ -1,4 +1,4 @@
-"""Fold targets and the fold loss (SPEC section 7).
+"""Fold targets and the fold loss (docs/method.md section 7).
 
 Frame: table frame, metres. The target of a fold mirrors the vertices on the grippers'
 side across the vertical plane through the fold line and raises them by

@@ -1,4 +1,4 @@
-"""Cloth materials (Penava et al. 2014, SPEC section 2) and contact friction.
+"""Cloth materials (Penava et al. 2014, docs/method.md section 2) and contact friction.
 
 Units: Young's modulus in Pa, areal density in kg/m^2, thickness in m.
 """

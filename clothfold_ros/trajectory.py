@@ -1,4 +1,4 @@
-"""Two-parameter fold trajectories (SPEC section 6).
+"""Two-parameter fold trajectories (docs/method.md section 6).
 
 Frame: table frame, metres, seconds. Each gripper follows a quadratic Bezier curve from
 its start to its end position, timed by a minimum-jerk profile along arc length, with

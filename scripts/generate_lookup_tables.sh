@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
-# Regenerate the 13 lookup tables of SPEC section 8 (resumable: rerun to continue).
+# Regenerate the 13 lookup tables of docs/method.md section 8 (resumable: rerun to continue).
 # Usage: scripts/generate_lookup_tables.sh [POINTS] [MAX_AREA_M2] [OUT]
 #   POINTS: all | alternate | every:R:T | comma list of fan indices (default every:4:6)
-#   MAX_AREA_M2: mesh max triangle area (default 4e-3; the study's full resolution is 5e-5)
-# Shipped tables: scripts/generate_lookup_tables.sh every:4:6 4e-3 config/tables
+#   MAX_AREA_M2: mesh max triangle area (default 5e-4, ~1.2K triangles; the study's full resolution is 5e-5)
+# Shipped tables: scripts/generate_lookup_tables.sh every:4:6 5e-4 config/tables (see docs/lookup.md)
 # Full fan, full resolution:  scripts/generate_lookup_tables.sh all 5e-5 out/tables_full
 set -u
 POINTS=${1:-every:4:6}
-MAX_AREA=${2:-4e-3}
+MAX_AREA=${2:-5e-4}
 OUT=${3:-config/tables}
 # sequence stages need the stage before them; the rest are independent
 ORDER="shape1 both_sleeves shape2 shape3 thin_cotton thick_cotton mu0.2 mu0.8 T1 T2 both_sides T8 middle"

@@ -1,4 +1,4 @@
-"""Fold specifications from keypoints (SPEC section 5)."""
+"""Fold specifications from keypoints (docs/method.md section 5)."""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,4 @@
-"""Shirt outline and mesh (SPEC section 1)."""
+"""Shirt outline and mesh (docs/method.md section 1)."""
 from __future__ import annotations
 
 import dataclasses

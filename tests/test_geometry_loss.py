@@ -1,4 +1,4 @@
-"""Fold targets and loss (SPEC section 7)."""
+"""Fold targets and loss (docs/method.md section 7)."""
 from __future__ import annotations
 
 import numpy as np

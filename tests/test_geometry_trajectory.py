@@ -1,4 +1,4 @@
-"""Two-parameter trajectories (SPEC section 6)."""
+"""Two-parameter trajectories (docs/method.md section 6)."""
 from __future__ import annotations
 
 import math
@@ -152,7 +152,7 @@ def test_fold_trajectory_sampling():
 def test_default_sleeve_peak_speed_matches_spec():
     spec, _ = sleeve_spec()
     peak = max(FoldTrajectory(spec, h, t).paths[0].peak_speed for h, t in fan())
-    assert peak == pytest.approx(0.65, abs=0.02)  # SPEC: about 0.65 m/s
+    assert peak == pytest.approx(0.65, abs=0.02)  # docs/method.md section 6: about 0.65 m/s
 
 
 @pytest.mark.parametrize("h, tilt, duration, message", [

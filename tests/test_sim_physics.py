@@ -1,4 +1,4 @@
-"""Physics checks of the IPC cloth simulator on small meshes (SPEC sections 2-4)."""
+"""Physics checks of the IPC cloth simulator on small meshes (docs/method.md sections 2-4)."""
 from __future__ import annotations
 
 import numpy as np

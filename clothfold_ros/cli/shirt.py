@@ -14,7 +14,7 @@ from ..trajectory import FoldTrajectory, fan
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("shirt", help="draw a shirt mesh, a fold and its trajectory fan to a PNG")
-    p.add_argument("--shape", type=int, choices=sorted(SHAPES), default=1, help="shirt shape (SPEC table)")
+    p.add_argument("--shape", type=int, choices=sorted(SHAPES), default=1, help="shirt shape preset (docs/method.md section 1)")
     p.add_argument("--fold", choices=FOLD_NAMES, default="left_sleeve")
     p.add_argument("--out", default="shirt.png", help="PNG path")
     p.add_argument("--max-area", type=float, default=DEFAULT_MAX_AREA, help="max triangle area (m^2)")

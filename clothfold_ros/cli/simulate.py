@@ -9,7 +9,7 @@ from pathlib import Path
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("simulate", help="simulate one fold headless (no ROS) and write loss, mesh, stats, PNG")
-    p.add_argument("--shape", type=int, default=1, choices=(1, 2, 3), help="shirt shape preset (SPEC table)")
+    p.add_argument("--shape", type=int, default=1, choices=(1, 2, 3), help="shirt shape preset (docs/method.md section 1)")
     p.add_argument("--material", default="cotton", help="cotton, wool, polyester, thin_cotton, thick_cotton")
     p.add_argument("--friction", type=float, default=0.5, help="Coulomb coefficient for every contact")
     p.add_argument("--fold", default="left_sleeve", help="left_sleeve, right_sleeve, left_side, right_side, middle")

@@ -1,4 +1,4 @@
-"""The 13 study scenarios (SPEC section 8) and the scenario features (SPEC section 9).
+"""The 13 study scenarios and the scenario features (docs/method.md sections 8 and 9).
 
 Features are measured from keypoints (name -> (3,) m, table frame) so the same function
 describes a scenario when its table is built and the current shirt at run time.

@@ -1,4 +1,4 @@
-"""Robust choice of (height ratio, tilt) from the nearest scenario table(s) (SPEC 9).
+"""Robust choice of (height ratio, tilt) from the nearest scenario table(s) (docs/method.md section 9).
 
 Rule (docs/lookup.md):
 1. Distance: normalized Euclidean distance between the scenario features
