@@ -5,11 +5,13 @@ import argparse
 import sys
 from pathlib import Path
 
+from ._options import add_tables_option
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plot", help="PNG loss landscape (fan layout) and best/worst final cloth of lookup tables")
     p.add_argument("scenarios", nargs="*", help="scenario names (default: every table under --tables)")
-    p.add_argument("--tables", type=Path, default=Path("config/tables"), help="tables root")
+    add_tables_option(p)
     p.add_argument("--out", type=Path, default=None, help="output folder (default: each table's own folder)")
     p.set_defaults(func=run)
 

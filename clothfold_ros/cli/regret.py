@@ -5,10 +5,12 @@ import argparse
 import sys
 from pathlib import Path
 
+from ._options import add_tables_option
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("regret", help="leave-one-scenario-out regret of the lookup selection")
-    p.add_argument("--tables", type=Path, default=Path("config/tables"), help="tables root")
+    add_tables_option(p)
     p.add_argument("--out", type=Path, default=None, help="also write the Markdown report here")
     p.set_defaults(func=run)
 

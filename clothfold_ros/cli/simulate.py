@@ -6,6 +6,8 @@ import sys
 import time
 from pathlib import Path
 
+from ._options import add_stepping_options
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("simulate", help="simulate one fold headless (no ROS) and write loss, mesh, stats, PNG")
@@ -17,9 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tilt", type=float, default=51.4, help="tilt angle (deg)")
     p.add_argument("--duration", type=float, default=4.0, help="motion time T (s)")
     p.add_argument("--max-area", type=float, default=1 / 20000, help="max triangle area (m^2); 1/20000 = full")
-    p.add_argument("--dt", type=float, default=0.04, help="time step (s)")
-    p.add_argument("--settle", type=float, default=0.2, help="settle time after release (s)")
-    p.add_argument("--newton-tol", type=float, default=1e-3, help="Newton stop: RMS(|dx|)/dt (m/s)")
+    add_stepping_options(p)
     p.add_argument("--out", type=Path, default=Path("out/simulate"), help="output directory")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=run)

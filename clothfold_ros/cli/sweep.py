@@ -5,20 +5,20 @@ import argparse
 import sys
 from pathlib import Path
 
+from ._options import TABLES_ROOT, add_stepping_options
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..lookup.scenario import SCENARIOS
 
     p = sub.add_parser("sweep", help="run a scenario over the 134-point fan (resumable) into a lookup table")
     p.add_argument("scenario", help=f"one of: {', '.join(SCENARIOS)}")
-    p.add_argument("--out", type=Path, default=Path("config/tables"),
-                   help="tables root; the sweep writes <out>/<scenario>/ (default config/tables)")
+    p.add_argument("--out", type=Path, default=TABLES_ROOT,
+                   help=f"tables root; the sweep writes <out>/<scenario>/ (default {TABLES_ROOT})")
     p.add_argument("--points", default="all", help="'all' (134), 'alternate', 'every:R:T' or comma list of fan indices")
     p.add_argument("--max-area", type=float, default=5e-4,
                    help="max triangle area (m^2); default 5e-4 (1.2K triangles, the shipped tables), 5e-5 = full")
-    p.add_argument("--dt", type=float, default=0.04, help="time step (s)")
-    p.add_argument("--settle", type=float, default=0.2, help="settle time after release (s)")
-    p.add_argument("--newton-tol", type=float, default=1e-3, help="Newton stop RMS(|dx|)/dt (m/s)")
+    add_stepping_options(p)
     p.add_argument("--max-newton", type=int, default=80, help="Newton iterations per step before failing")
     p.add_argument("--workers", type=int, default=None, help="local processes (default: number of cores)")
     p.add_argument("--ray", default=None, metavar="ADDRESS",
