@@ -12,6 +12,7 @@ NODES = [
     "cloth_sim_node",
     "kinematic_robot_node",
     "recorder_node",
+    "player_node",
 ]
 
 setup(

@@ -20,10 +20,51 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Sequence
 
-ROOT = Path(__file__).resolve().parent.parent
-DEFAULT_PARAMS = ROOT / "config" / "clothfold.yaml"
+PACKAGE = "clothfold_ros"
+ROOT = Path(__file__).resolve().parent.parent  # the checkout when run from source, else site-packages
+SOURCE_CHECKOUT = (ROOT / "package.xml").is_file() and (ROOT / "config").is_dir()
 PIPELINE = ("keypoint_node", "fold_planner_node", "trajectory_node")
-BACKENDS = {"sim": "cloth_sim_node", "kinematic": "kinematic_robot_node"}
+BACKENDS = {"sim": "cloth_sim_node", "kinematic": "kinematic_robot_node", "none": None}  # none: a real driver
+
+
+def share_dir() -> Path:
+    """Directory of the package resources (config/, launch/, package.xml): the checkout when
+    run from source, else share/clothfold_ros of the install, found through the ament index
+    (AMENT_PREFIX_PATH). RuntimeError when neither exists."""
+    if SOURCE_CHECKOUT:
+        return ROOT
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+    except ImportError as err:
+        raise RuntimeError(f"not a source checkout and ament_index_python is missing ({err})") from err
+    try:
+        return Path(get_package_share_directory(PACKAGE))
+    except PackageNotFoundError as err:
+        raise RuntimeError(f"package {PACKAGE} not in the ament index (AMENT_PREFIX_PATH="
+                           f"{os.environ.get('AMENT_PREFIX_PATH', '')!r}); source the install's setup.bash") from err
+
+
+def resource(path: str | Path) -> Path:
+    """A package resource: absolute paths as given, relative ones below share_dir()
+    (e.g. "config/tables" -> <share>/config/tables)."""
+    p = Path(path)
+    return p if p.is_absolute() else share_dir() / p
+
+
+def work_dir() -> Path:
+    """Where relative output paths (bags/) go: the checkout from source, else the current directory
+    (an install's share/ and site-packages are not for output)."""
+    return ROOT if SOURCE_CHECKOUT else Path.cwd()
+
+
+def _default_params() -> Path:
+    try:
+        return resource("config/clothfold.yaml")
+    except RuntimeError:
+        return Path("config/clothfold.yaml")  # reported as missing where it is used
+
+
+DEFAULT_PARAMS = _default_params()
 
 
 def _fmt(value: object) -> str:
@@ -48,18 +89,29 @@ def node_command(node: str, params_file: str | Path | None = None, params: dict 
 
 
 def pipeline_nodes(backend: str = "sim", params_file: str | Path | None = DEFAULT_PARAMS,
-                   overrides: dict[str, dict] | None = None) -> list[tuple[str, list[str]]]:
-    """(name, command) of every pipeline node for a backend ("sim" or "kinematic").
+                   overrides: dict[str, dict] | None = None, use_sim_time: bool | None = None,
+                   lookahead: float | None = None) -> list[tuple[str, list[str]]]:
+    """(name, command) of every pipeline node for a backend ("sim", "kinematic" or "none").
 
     overrides: node name -> {parameter: value}. The kinematic backend has no cloth, so
-    keypoint_node publishes the model shirt's keypoints (source = model).
+    keypoint_node publishes the model shirt's keypoints (source = model). backend "none"
+    starts no backend (a real driver runs instead); the pipeline nodes then run on wall time
+    (use_sim_time false: a driver publishes no /clock). use_sim_time / lookahead (s) given
+    here set those parameters of the pipeline nodes / trajectory_node (what the launch file's
+    arguments of the same names do).
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
     overrides = {k: dict(v) for k, v in (overrides or {}).items()}
     if backend == "kinematic":
         overrides.setdefault("keypoint_node", {}).setdefault("source", "model")
-    names = [BACKENDS[backend], *PIPELINE]
+    if use_sim_time is None:
+        use_sim_time = backend != "none"
+    for n in PIPELINE:
+        overrides.setdefault(n, {}).setdefault("use_sim_time", bool(use_sim_time))
+    if lookahead is not None:
+        overrides.setdefault("trajectory_node", {})["lookahead"] = float(lookahead)
+    names = [n for n in (BACKENDS[backend], *PIPELINE) if n]
     return [(n, node_command(n, params_file, overrides.get(n))) for n in names]
 
 
@@ -102,7 +154,7 @@ class Launcher:
     # -- starting -----------------------------------------------------------------------
     def start(self, name: str, cmd: Sequence[str], cwd: str | Path | None = None) -> Process:
         popen = subprocess.Popen(list(cmd), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                 env=self.env, cwd=str(cwd or ROOT), start_new_session=True, text=True, bufsize=1,
+                                 env=self.env, cwd=str(cwd or work_dir()), start_new_session=True, text=True, bufsize=1,
                                  errors="replace")
         proc = Process(name, list(cmd), popen)
         proc.reader = threading.Thread(target=self._read, args=(proc,), daemon=True, name=f"read-{name}")
@@ -111,8 +163,9 @@ class Launcher:
         return proc
 
     def start_pipeline(self, backend: str = "sim", params_file: str | Path | None = DEFAULT_PARAMS,
-                       overrides: dict[str, dict] | None = None) -> list[Process]:
-        return [self.start(n, c) for n, c in pipeline_nodes(backend, params_file, overrides)]
+                       overrides: dict[str, dict] | None = None, use_sim_time: bool | None = None,
+                       lookahead: float | None = None) -> list[Process]:
+        return [self.start(n, c) for n, c in pipeline_nodes(backend, params_file, overrides, use_sim_time, lookahead)]
 
     def _read(self, proc: Process) -> None:
         assert proc.popen.stdout is not None

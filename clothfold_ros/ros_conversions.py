@@ -117,8 +117,10 @@ def keypoints_to_msg(keypoints: Mapping[str, Sequence[float]], stamp_ns: int,
 
 
 def keypoints_from_msg(m: Keypoints) -> tuple[dict[str, np.ndarray], dict[str, int]]:
-    """(name -> (3,) m, name -> vertex id (-1 = none)); ValueError on NaN, duplicates or
-    mismatched array lengths."""
+    """(name -> (3,) m, name -> vertex id (-1 = none)); ValueError on a frame other than the
+    table frame, NaN, duplicates or mismatched array lengths."""
+    if m.header.frame_id not in ("", TABLE_FRAME):
+        raise ValueError(f"keypoints frame is {m.header.frame_id!r}; expected {TABLE_FRAME!r} (no tf here)")
     names = list(m.names)
     if not names:
         raise ValueError("keypoints message has no keypoints")
@@ -127,7 +129,8 @@ def keypoints_from_msg(m: Keypoints) -> tuple[dict[str, np.ndarray], dict[str, i
     if len(m.vertex_ids) not in (0, len(names)):
         raise ValueError(f"keypoints message has {len(names)} names but {len(m.vertex_ids)} vertex ids")
     if len(set(names)) != len(names):
-        raise ValueError("keypoints message has duplicate names")
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise ValueError(f"keypoints message has duplicate names: {', '.join(dup)}")
     pts = {n: point_from_msg(p, f"keypoint {n!r}") for n, p in zip(names, m.points)}
     ids = {n: int(i) for n, i in zip(names, m.vertex_ids)} if len(m.vertex_ids) else {n: -1 for n in names}
     return pts, ids
@@ -231,6 +234,9 @@ def cloth_state_from_msg(m: ClothState) -> ClothStateData:
     ids = np.asarray(m.keypoint_vertex_ids, dtype=np.int64)
     if len(ids) != len(names):
         raise ValueError(f"cloth state has {len(names)} keypoint names but {len(ids)} keypoint vertex ids")
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise ValueError(f"cloth state has duplicate keypoint names: {', '.join(dup)}")
     if len(ids) and ids.max() >= len(v):
         raise ValueError(f"cloth state keypoint vertex id {int(ids.max())} out of range ({len(v)} vertices)")
     if not math.isfinite(m.thickness) or m.thickness < 0:

@@ -20,6 +20,16 @@ def running_pipeline(monkeypatch, domain: int, backend: str, overrides: dict[str
 
     with Launcher(domain_id=domain, echo=False) as launcher:
         launcher.start_pipeline(backend, overrides=overrides)
-        with PipelineClient(client_name) as client:
-            yield launcher, client
-        launcher.check_alive()
+        try:
+            with PipelineClient(client_name) as client:
+                yield launcher, client
+            launcher.check_alive()
+        finally:
+            dump_logs(launcher)  # captured: pytest shows it only when the test fails
+
+
+def dump_logs(launcher, lines: int = 40) -> None:
+    """Print the last lines of every process (shown by pytest when a test fails)."""
+    for p in launcher.procs:
+        print(f"---- {p.name} (exit {p.popen.poll()})")
+        print("\n".join(p.lines[-lines:]))

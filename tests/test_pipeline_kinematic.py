@@ -1,9 +1,11 @@
 """The unchanged pipeline against kinematic_robot_node (separate processes), and the bad inputs
-every node must survive while it keeps serving: unknown folds, NaN or missing keypoints, a new
-fold while one runs, motions outside the workspace or faster than the speed limit."""
+every node must survive while it keeps serving: unknown folds, NaN, foreign-frame, duplicate or
+partial keypoint sets, a new fold while one runs, goals outside the search space, motions outside
+the workspace or faster than the speed limit."""
 from __future__ import annotations
 
 import math
+import re
 import time
 
 import numpy as np
@@ -33,6 +35,11 @@ def _log(launcher, name):
     return "\n".join(next(p for p in launcher.procs if p.name == name).lines)
 
 
+def _wait_log(launcher, name, words, timeout=20):
+    """Wait for a line of the node's output containing words (output arrives through a pipe)."""
+    launcher.wait_for(next(p for p in launcher.procs if p.name == name), re.escape(words), timeout)
+
+
 def test_kinematic_pipeline_and_bad_inputs(pipeline):
     launcher, client = pipeline
     client.wait_keypoints(60)
@@ -49,13 +56,13 @@ def test_kinematic_pipeline_and_bad_inputs(pipeline):
     assert not r2.success and "refused" in r2.message
     res = client.wait_result("left_sleeve", 60, after=before)
     assert res.success and math.isnan(res.loss) and res.steps == 50  # 2 s / 0.04 s
-    assert "still running" in _log(launcher, "trajectory_node")
+    _wait_log(launcher, "trajectory_node", "still running")
 
     # goals straight to trajectory_node: too fast, outside the workspace, NaN
     good = client.plan("right_sleeve", execute=False).spec
     fast = fold_spec_from_msg(good)
     fast_msg = type(good)(**{k: getattr(good, k) for k in good.get_fields_and_field_types()})
-    fast_msg.duration = 0.3
+    fast_msg.duration = 0.6
     assert not client.send_goal(fast_msg)
     far = type(good)(**{k: getattr(good, k) for k in good.get_fields_and_field_types()})
     far.end_poses[0].position.x = 5.0
@@ -63,9 +70,27 @@ def test_kinematic_pipeline_and_bad_inputs(pipeline):
     nan = type(good)(**{k: getattr(good, k) for k in good.get_fields_and_field_types()})
     nan.tilt_deg = math.nan
     assert not client.send_goal(nan)
-    log = _log(launcher, "trajectory_node")
-    assert "exceeds the limit" in log and "leaves the workspace" in log and "not finite" in log
+    for words in ("exceeds the limit", "leaves the workspace", "not finite"):
+        _wait_log(launcher, "trajectory_node", words)
     assert fast.spec.n_grippers == 1
+
+    # goals outside the search space / the sane ranges are refused with the reason
+    def copy(**changes):
+        m = type(good)(**{k: getattr(good, k) for k in good.get_fields_and_field_types()})
+        for k, v in changes.items():
+            setattr(m, k, v)
+        return m
+
+    refusals = {"height_ratio = 1.5 is outside [0.1, 1]": copy(height_ratio=1.5),
+                "height_ratio = 0.05 is outside": copy(height_ratio=0.05),
+                "tilt_deg = 90 deg is outside [0, 60]": copy(tilt_deg=90.0),
+                "unknown fold 'foo'": copy(fold_name="foo"),
+                "duration = 10000 s is outside [0.5, 60]": copy(duration=1e4),
+                "duration = 1e+12 s is outside": copy(duration=1e12)}
+    for words, msg in refusals.items():
+        assert not client.send_goal(msg), words
+    for words in refusals:
+        _wait_log(launcher, "trajectory_node", words)
 
     # NaN keypoints are refused by the planner (the last good ones stay)
     bad = Keypoints(names=["bottom_left"], points=[Point(x=math.nan, y=0.0, z=0.0)], vertex_ids=[-1])
@@ -75,15 +100,21 @@ def test_kinematic_pipeline_and_bad_inputs(pipeline):
         time.sleep(0.3)
     assert "keypoints ignored" in _log(launcher, "fold_planner_node")
     assert client.plan("left_side", execute=False).success
-    # missing keypoints: valid message, but the fold cannot be built from it
-    missing = Keypoints(names=["neck_left"], points=[Point()], vertex_ids=[-1])
-    deadline = time.monotonic() + 5
-    while time.monotonic() < deadline:  # republished: the model keypoints come back every 0.5 s
-        client.keypoints_pub.publish(missing)
+    # a partial set, a foreign frame, duplicate names: refused with the reason, the last good set stays
+    good_kp = client.wait_keypoints(10)
+    partial = Keypoints(names=["neck_left"], points=[Point()], vertex_ids=[-1])
+    foreign = Keypoints(names=list(good_kp.names), points=list(good_kp.points), vertex_ids=list(good_kp.vertex_ids))
+    foreign.header.frame_id = "camera"
+    dup = Keypoints(names=list(good_kp.names[:-1]) + [good_kp.names[0]], points=list(good_kp.points),
+                    vertex_ids=list(good_kp.vertex_ids))
+    for msg, words in ((partial, "incomplete set"), (foreign, "frame is 'camera'"), (dup, "duplicate names")):
+        deadline = time.monotonic() + 10
+        while words not in _log(launcher, "fold_planner_node") and time.monotonic() < deadline:
+            client.keypoints_pub.publish(msg)
+            time.sleep(0.3)
+        assert words in _log(launcher, "fold_planner_node"), words
         r = client.plan("middle", execute=False, wait_for_keypoints=False)
-        if not r.success:
-            break
-    assert not r.success and "missing" in r.message
+        assert r.success, (words, r.message)
 
     # two grippers: the side fold runs after all that, model keypoints republished meanwhile
     time.sleep(0.6)

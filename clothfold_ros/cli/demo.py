@@ -5,13 +5,17 @@ fold_planner_node, trajectory_node) as their own processes on a private ROS doma
 localhost-only discovery, plans and executes the default shirt's left sleeve (or, with
 --sequence, left sleeve, right sleeve, left side, right side, middle, re-planning each
 stage from the keypoints of the cloth as it is then), prints each loss and the bag path,
-and stops every process (the recorder with SIGINT, so the bag is complete).
+and stops every process (the recorder with SIGINT, so the bag is complete). SIGINT (Ctrl-C)
+or SIGTERM to the demo stop every process it started and close the bag the same way; a
+node that exits during a fold (e.g. a killed backend) ends the demo at once with a failure.
+Relative --bags paths are below the checkout when run from source, else the current directory.
 """
 from __future__ import annotations
 
 import argparse
 import math
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -27,7 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-area", type=float, default=5e-4, help="sim mesh max triangle area (m^2; default 5e-4, about 1.2K triangles)")
     p.add_argument("--selection", choices=("table", "parameter"), default=None,
                    help="(height ratio, tilt) from the lookup table or the parameters (default: config file)")
-    p.add_argument("--bags", type=Path, default=Path("bags"), help="bag directory (default bags/)")
+    p.add_argument("--bags", type=Path, default=Path("bags"),
+                   help="bag directory (default bags/: in the checkout from source, else in the current directory)")
     p.add_argument("--name", default=None, help="run name (default demo-<date>-<time>)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: from the process id)")
     p.add_argument("--timeout", type=float, default=900.0, help="seconds allowed per fold")
@@ -35,13 +40,30 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _terminate(signum, _frame) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+def _wait_result(client, launcher, fold: str, timeout: float, after: int):
+    """The fold's /fold/result; RuntimeError as soon as a started process has exited."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return client.wait_result(fold, min(1.0, max(0.01, deadline - time.monotonic())), after=after)
+        except TimeoutError:
+            launcher.check_alive()
+            if time.monotonic() >= deadline:
+                raise
+
+
 def run(args: argparse.Namespace) -> int:
-    from ..launcher import ROOT, Launcher, node_command
+    from ..launcher import DEFAULT_PARAMS, Launcher, node_command, work_dir
 
     tic = time.monotonic()
+    old_term = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM: the same clean stop as Ctrl-C
     folds = list(FOLD_SEQUENCE) if args.sequence else [args.fold]
     name = args.name or time.strftime("demo-%Y%m%d-%H%M%S")
-    bags = args.bags if args.bags.is_absolute() else ROOT / args.bags
+    bags = args.bags if args.bags.is_absolute() else work_dir() / args.bags
     bags.mkdir(parents=True, exist_ok=True)
     bag = bags / f"{name}.mcap"
     domain = args.domain_id if args.domain_id is not None else 100 + os.getpid() % 50
@@ -51,14 +73,19 @@ def run(args: argparse.Namespace) -> int:
     if args.selection:
         overrides["fold_planner_node"] = {"selection": args.selection}
     print(f"[demo] {args.backend} backend, folds: {', '.join(folds)}, ROS_DOMAIN_ID={domain}, bag {bag}", flush=True)
+    print(f"[demo] parameters {DEFAULT_PARAMS}", flush=True)
     losses: list[tuple[str, bool, float, str]] = []
     code = 1
     launcher = Launcher(domain_id=domain, echo=not args.quiet)
     recorder = None
     try:
+        if not DEFAULT_PARAMS.is_file():
+            raise RuntimeError(f"no parameters file {DEFAULT_PARAMS}")
         recorder = launcher.start("recorder_node", node_command("recorder_node", args=["--output", str(bag)]))
         launcher.wait_for(recorder, r"recording to", 120)
         launcher.start_pipeline(args.backend, overrides=overrides)
+        for p in launcher.procs:
+            print(f"[demo] started {p.name} (pid {p.pid})", flush=True)
         from ..nodes.pipeline_client import PipelineClient
         from ..ros_conversions import time_to_ns
 
@@ -75,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
                     print(f"[demo] {fold}: planner refused: {resp.message}", flush=True)
                     break
                 print(f"[demo] stage {stage}: {resp.message}", flush=True)
-                res = client.wait_result(fold, args.timeout, after=before)
+                res = _wait_result(client, launcher, fold, args.timeout, after=before)
                 losses.append((fold, res.success, res.loss, res.reason))
                 print(f"[demo] {fold}: {'success' if res.success else 'FAILED'}, loss {res.loss:.6f} m"
                       + (f" ({res.reason})" if res.reason else "") + f", {res.steps} steps", flush=True)
@@ -88,15 +115,24 @@ def run(args: argparse.Namespace) -> int:
         code = 0 if losses and all(ok for _, ok, _, _ in losses) and len(losses) == len(folds) else 1
     except (RuntimeError, TimeoutError) as err:
         print(f"[demo] error: {err}", file=sys.stderr, flush=True)
-    except KeyboardInterrupt:
-        print("[demo] interrupted", file=sys.stderr, flush=True)
+    except KeyboardInterrupt as sig:
+        print(f"[demo] interrupted ({sig or 'SIGINT'}): stopping every process", file=sys.stderr, flush=True)
+        code = 130
     finally:
+        # a second Ctrl-C / SIGTERM must not cut the clean-up short (every stop below is bounded)
+        old_int = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
         closed = None
-        if recorder is not None:
-            time.sleep(1.0)  # let the recorder write what is in flight (the last result)
-            launcher.stop(recorder, timeout=30)
-            closed = next((ln for ln in recorder.lines if "bag closed" in ln), None)
-        launcher.stop_all()
+        try:
+            if recorder is not None:
+                if recorder.alive() and code != 130:
+                    time.sleep(1.0)  # let the recorder write what is in flight (the last result)
+                launcher.stop(recorder, timeout=30)
+                closed = next((ln for ln in recorder.lines if "bag closed" in ln), None)
+            launcher.stop_all()
+        finally:
+            signal.signal(signal.SIGINT, old_int)
+            signal.signal(signal.SIGTERM, old_term)
     print("[demo] ---", flush=True)
     for fold, ok, loss, reason in losses:
         print(f"[demo] {fold}: loss {loss:.6f} m {'ok' if ok else 'FAILED ' + reason}", flush=True)

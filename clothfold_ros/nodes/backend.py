@@ -8,6 +8,14 @@ pose, PoseStamped, every step while closed), /gripper_<i>/state (sensor_msgs/Joi
 finger opening in m) and /fold/result. Time advances by `LockStep` rules: a step t -> t + dt
 only once the target stamped t + dt of every closed gripper is there; while every gripper
 is open the clock runs at real_time_factor. Subclasses implement the physics hooks.
+
+What the backend refuses (logged through ErrorLog, never silently): targets in another frame,
+NaN poses or efforts, targets for a gripper that is open with no fold running, announced or
+pending for it (idle), a close command with no target pose at its stamp and no fold announced
+for it (dropped at once: the clock never waits for it). Its own limits (workspace box, speed
+over a step) fail a running fold, and so do grippers that open before the end of the
+announced motion (the fold was cancelled or aborted upstream): /fold/result success = false
+with the reason.
 """
 from __future__ import annotations
 
@@ -23,7 +31,9 @@ from sensor_msgs.msg import JointState
 from .. import ros_conversions as rc
 from ..pose import Pose
 from . import common, params
-from .lockstep import LockStep
+from .errorlog import ErrorLog
+from .limits import check_step, check_workspace_params
+from .lockstep import STAMP_TOLERANCE_NS, LockStep
 from .params import Param
 
 BACKEND_PARAMS = [
@@ -36,17 +46,23 @@ BACKEND_PARAMS = [
           range=(0.0, 1.0)),
     Param("stall_timeout", 60.0, "fail the fold when a closed gripper gets no target for this long (wall s)",
           range=(0.1, 3600.0)),
+    Param("workspace_min", [-1.0, -1.0, 0.0], "the backend's own workspace box, lower corner (m, table frame); "
+          "a target outside it fails the fold", range=(-10.0, 10.0), length=3),
+    Param("workspace_max", [1.0, 1.0, 1.0], "the backend's own workspace box, upper corner (m, table frame)",
+          range=(-10.0, 10.0), length=3),
+    Param("max_speed", 1.0, "the backend's own gripper speed limit (m/s) over one dt step; faster fails the fold",
+          range=(0.01, 10.0)),
 ]
 
 
 class LockStepBackend(Node):
     """Base node: subclasses override on_close, on_step, on_open, on_all_open (and may use idle_work)."""
 
-    def __init__(self, name: str, extra_params: list[Param], cross_check=None) -> None:
+    def __init__(self, name: str, extra_params: list[Param]) -> None:
         super().__init__(name)
         if self.get_parameter("use_sim_time").value:
             raise ValueError(f"{name} publishes /clock and must run on wall time (use_sim_time false)")
-        params.declare(self, BACKEND_PARAMS + extra_params, cross_check)
+        params.declare(self, BACKEND_PARAMS + extra_params, check_workspace_params)
         self.n = params.value(self, "n_grippers")
         self.ls = LockStep(self.n, params.value(self, "dt"))
         self.clock_pub = self.create_publisher(Clock, common.CLOCK, common.CLOCK_QOS)
@@ -62,37 +78,67 @@ class LockStepBackend(Node):
                                      lambda m, i=i: self.on_command(i, m), common.COMMANDS)
         self.create_subscription(FoldSpecMsg, common.FOLD_ACTIVE, self.on_active, common.LATCHED)
         self.active: rc.PlannedFold | None = None  # the fold being executed (from /fold/active)
-        self.next_active: rc.PlannedFold | None = None
+        self.announced: rc.PlannedFold | None = None  # the next fold (from /fold/active), not started yet
+        self.ended_early: str | None = None  # why the fold whose grippers just opened is a failure
         self.opening = [0.0] * self.n
+        self.last_pose: dict[int, Pose] = {}  # last commanded pose of each closed gripper
         self._last_wall = time.monotonic()
         self._budget_ns = 0
         self._waiting_since: float | None = None
-        self._error_counts: dict[str, int] = {}
+        self._held_since: float | None = None
+        self.errors = ErrorLog(interval=1.0)
         self.create_timer(params.value(self, "tick"), self.on_tick)
         self.publish_clock()
 
     # -- input -------------------------------------------------------------------------------
     def error_once(self, key: str, text: str) -> None:
-        """Log an input error (every one counted; repeats of the same kind logged sparsely)."""
-        n = self._error_counts.get(key, 0) + 1
-        self._error_counts[key] = n
-        if n <= 3 or n % 100 == 0:
-            self.get_logger().error(f"{text} (#{n} of this kind)")
+        """Log an input error: every one counted, the first of each kind logged, repeats at most
+        once a second with the counts (ErrorLog); the rest are reported with the fold's result."""
+        line = self.errors.record(key, text)
+        if line:
+            self.get_logger().error(line)
+
+    def _fold_covers(self, stamp_ns: int) -> bool:
+        """True when the running or the announced fold's motion [t0, t0 + duration] covers the stamp."""
+        for f in (self.active, self.announced):
+            if f is not None and f.stamp_ns - STAMP_TOLERANCE_NS <= stamp_ns <= \
+                    f.stamp_ns + rc.seconds_to_ns(f.duration) + STAMP_TOLERANCE_NS:
+                return True
+        return False
+
+    def _expects_target(self, i: int, stamp_ns: int) -> bool:
+        """A target for gripper i stamped stamp_ns belongs to a fold: the gripper is closed, a close is
+        pending for it at or before the stamp, or the running/announced fold's motion covers the stamp."""
+        if i in self.ls.closed:
+            return True
+        if any(c.closed and c.gripper == i and c.stamp_ns <= stamp_ns + STAMP_TOLERANCE_NS for c in self.ls.pending):
+            return True
+        return self._fold_covers(stamp_ns)
 
     def on_target(self, i: int, msg: PoseStamped) -> None:
         try:
             if msg.header.frame_id not in ("", rc.TABLE_FRAME):
                 raise ValueError(f"frame {msg.header.frame_id!r} is not {rc.TABLE_FRAME!r}")
-            self.ls.add_target(i, rc.time_to_ns(msg.header.stamp), rc.pose_from_msg(msg.pose, f"gripper_{i} target"))
+            stamp = rc.time_to_ns(msg.header.stamp)
+            pose = rc.pose_from_msg(msg.pose, f"gripper_{i} target")
+            if not self._expects_target(i, stamp):
+                self.error_once(f"idle_target{i}", f"gripper_{i} target stamped {stamp * 1e-9:.3f} s dropped: the "
+                                "gripper is open and no fold is running, announced or pending for that time")
+                return
+            self.ls.add_target(i, stamp, pose)
         except ValueError as err:
             self.error_once(f"target{i}", f"gripper_{i} target pose ignored: {err}")
 
     def on_command(self, i: int, msg: GripperCommand) -> None:
         try:
+            if msg.header.frame_id not in ("", rc.TABLE_FRAME):
+                raise ValueError(f"frame {msg.header.frame_id!r} is not {rc.TABLE_FRAME!r}")
             if msg.gripper and msg.gripper != f"gripper_{i}":
                 raise ValueError(f"command names {msg.gripper!r} on gripper_{i}'s topic")
             if not (math.isfinite(msg.position) and msg.position >= 0):
                 raise ValueError(f"finger opening must be >= 0 m, got {msg.position}")
+            if not math.isfinite(msg.max_effort):
+                raise ValueError(f"max_effort must be finite (N; negative = no limit), got {msg.max_effort}")
             closed = msg.position <= params.value(self, "close_threshold")
             self.ls.add_command(i, rc.time_to_ns(msg.header.stamp), closed)
             if not closed:
@@ -108,9 +154,16 @@ class LockStepBackend(Node):
         except ValueError as err:
             self.error_once("active", f"/fold/active ignored: {err}")
             return
-        self.next_active = plan
-        if not self.ls.closed and plan.stamp_ns >= self.ls.now_ns:
+        if plan.stamp_ns < self.ls.now_ns - STAMP_TOLERANCE_NS and not self._closes_pending_at(plan.stamp_ns):
+            self.error_once("old_active", f"/fold/active {plan.spec.name} ignored: it starts at "
+                            f"{plan.stamp_ns * 1e-9:.3f} s, before the clock ({self.ls.now_ns * 1e-9:.3f} s)")
+            return
+        self.announced = plan
+        if not self.ls.closed:
             self.ls.hold_until = plan.stamp_ns  # do not run the idle clock past the fold's start
+
+    def _closes_pending_at(self, stamp_ns: int) -> bool:
+        return any(c.closed and abs(c.stamp_ns - stamp_ns) <= STAMP_TOLERANCE_NS for c in self.ls.pending)
 
     # -- main loop ------------------------------------------------------------------------------
     def publish_clock(self) -> None:
@@ -140,23 +193,41 @@ class LockStepBackend(Node):
             if cmd is not None:
                 if cmd.closed:
                     pose = self.ls.target_now(cmd.gripper)
+                    if pose is None and not self.ls.closed and not self._fold_covers(cmd.stamp_ns):
+                        self.ls.pop_command()  # a stray close: never hold the clock for it
+                        self.error_once(f"stray_close{cmd.gripper}", f"gripper_{cmd.gripper} close command stamped "
+                                        f"{cmd.stamp_ns * 1e-9:.3f} s dropped: no target pose at its stamp and no "
+                                        f"fold announced on {common.FOLD_ACTIVE} for it")
+                        continue
                     if pose is None:
                         return self._stalled(f"no target pose of gripper_{cmd.gripper} at its close time "
                                              f"{cmd.stamp_ns * 1e-9:.3f} s")
                     self.ls.pop_command()
                     if cmd.gripper not in self.ls.closed:
                         if not self.ls.closed:
-                            self.active = self.next_active
+                            self.active, self.announced = self.announced, None
+                            self.ended_early = None
+                        reason = check_step({}, {cmd.gripper: pose}, self.ls.dt_ns * 1e-9,
+                                            params.value(self, "workspace_min"), params.value(self, "workspace_max"),
+                                            params.value(self, "max_speed"))
+                        if reason:
+                            self.ls.close(cmd.gripper)  # so that fail() opens it again
+                            return self.fail(f"grasp refused: {reason}")
                         self.on_close(cmd.gripper, pose)
                         self.ls.close(cmd.gripper)
+                        self.last_pose[cmd.gripper] = pose
                         self.publish_gripper_state(cmd.gripper)
                 else:
                     self.ls.pop_command()
                     if cmd.gripper in self.ls.closed:
                         self.on_open(cmd.gripper)
                         self.ls.open(cmd.gripper)
+                        self.last_pose.pop(cmd.gripper, None)
                         self.publish_gripper_state(cmd.gripper)
                         if not self.ls.closed:
+                            self.ended_early = self._early_open_reason()
+                            if self.ended_early:
+                                self.get_logger().error(f"fold failed: {self.ended_early}")
                             self.on_all_open()
                 self._waiting_since = None
                 continue
@@ -167,7 +238,12 @@ class LockStepBackend(Node):
                 if targets is None:
                     return self._stalled(f"no target pose stamped {(self.ls.now_ns + self.ls.dt_ns) * 1e-9:.3f} s")
                 self._waiting_since = None
+                reason = check_step(self.last_pose, targets, self.ls.dt_ns * 1e-9, params.value(self, "workspace_min"),
+                                    params.value(self, "workspace_max"), params.value(self, "max_speed"))
+                if reason:
+                    return self.fail(f"limit at {(self.ls.now_ns + self.ls.dt_ns) * 1e-9:.3f} s: {reason}")
                 self.on_step(targets)
+                self.last_pose.update(targets)
                 self.ls.stepped()
                 self._budget_ns -= self.ls.dt_ns
                 for g, p in targets.items():
@@ -182,6 +258,18 @@ class LockStepBackend(Node):
             before = self.ls.now_ns
             self.ls.advance_free(self._budget_ns)
             self._budget_ns -= self.ls.now_ns - before
+            hold = self.ls.hold_until
+            if hold is not None and self.ls.now_ns >= hold - STAMP_TOLERANCE_NS and not self.ls.pending:
+                self._held_since = self._held_since or time.monotonic()
+                if time.monotonic() - self._held_since > params.value(self, "stall_timeout"):
+                    # the announced fold's close command never came: stop holding the clock for it
+                    self.error_once("no_close", f"fold {self.announced.spec.name if self.announced else '?'} "
+                                    f"announced for {hold * 1e-9:.3f} s: no close command within "
+                                    f"{params.value(self, 'stall_timeout'):g} s; the clock runs on")
+                    self.ls.hold_until = None
+                    self.announced = None
+            else:
+                self._held_since = None
             break
         if self.ls.now_ns != start or not self.ls.closed:
             self.publish_clock()
@@ -203,13 +291,35 @@ class LockStepBackend(Node):
             except Exception:  # noqa: BLE001
                 pass
         self.ls.abort()
+        self.last_pose.clear()
         self.on_abort()
         self.publish_result(False, reason, math.nan)
         self.active = None
+        self._report_unlogged()
+
+    def _early_open_reason(self) -> str | None:
+        """Why a fold whose grippers all opened now is a failure: they opened before the end of the
+        announced motion (t0 + duration), i.e. the fold was cancelled or aborted. None otherwise."""
+        a = self.active
+        if a is None:
+            return None
+        end = a.stamp_ns + rc.seconds_to_ns(a.duration)
+        if self.ls.now_ns >= end - STAMP_TOLERANCE_NS:
+            return None
+        return (f"the grippers opened at {self.ls.now_ns * 1e-9:.3f} s, {(end - self.ls.now_ns) * 1e-9:.3f} s before "
+                f"the end of the planned motion ({end * 1e-9:.3f} s): the fold was cancelled or aborted")
+
+    def _report_unlogged(self) -> None:
+        line = self.errors.flush()
+        if line:
+            self.get_logger().error(line)
 
     def publish_result(self, success: bool, reason: str, loss: float, steps: int = 0, newton: int = 0,
                        wall: float = 0.0) -> None:
         a = self.active
+        if success is not False and self.ended_early:
+            success, reason = False, self.ended_early
+        self._report_unlogged()
         self.result_pub.publish(FoldResult(
             header=rc.header(self.ls.now_ns), fold_name=a.spec.name if a else "", stage=a.stage if a else 0,
             success=bool(success), reason=reason, loss=float(loss), height_ratio=a.height_ratio if a else math.nan,

@@ -15,7 +15,6 @@ table cannot be used the request is refused, unless fallback_to_parameters is tr
 """
 from __future__ import annotations
 
-import os
 import sys
 import threading
 from pathlib import Path
@@ -29,19 +28,22 @@ from rclpy.node import Node
 
 from .. import ros_conversions as rc
 from ..folding import FOLD_NAMES, FOLD_SEQUENCE, fold_spec
-from ..trajectory import MAX_HEIGHT_RATIO, MAX_TILT_DEG
+from ..garment import KEYPOINT_NAMES
 from . import common, params
+from .limits import DURATION_RANGE, HEIGHT_RATIO_RANGE, TILT_RANGE_DEG
 from .params import Param
 
 PARAMS = [
     Param("selection", "parameter", "how (height ratio, tilt) are chosen", choices=("parameter", "table")),
-    Param("height_ratio", 0.5, "Bezier height ratio (-) when selection = parameter", range=(0.01, MAX_HEIGHT_RATIO)),
-    Param("tilt_deg", 30.0, "Bezier tilt (deg) when selection = parameter", range=(0.0, MAX_TILT_DEG)),
-    Param("table_dir", "config/tables", "lookup tables (relative paths: to $CLOTHFOLD_ROOT, else the cwd)"),
+    Param("height_ratio", 0.5, "Bezier height ratio (-) when selection = parameter (the search space)",
+          range=HEIGHT_RATIO_RANGE),
+    Param("tilt_deg", 30.0, "Bezier tilt (deg) when selection = parameter (the search space)", range=TILT_RANGE_DEG),
+    Param("table_dir", "config/tables", "lookup tables directory (a relative path is below the package's share "
+          "directory, found through the ament index; the checkout when run from source)"),
     Param("fallback_to_parameters", False, "use the parameters when the table cannot be used (else refuse)"),
     params.MATERIAL,
     Param("friction", 0.5, "friction coefficient assumed for table selection (-)", range=(0.0, 2.0)),
-    Param("duration", 4.0, "fold motion duration (s)", range=(0.1, 60.0)),
+    Param("duration", 4.0, "fold motion duration (s)", range=DURATION_RANGE),
     Param("settle_time", 0.2, "settle time after release (s)", range=(0.0, 10.0)),
     Param("end_angle_deg", 175.0, "end pose: start pose rotated this much about the fold line (deg)",
           range=(1.0, 180.0)),
@@ -51,11 +53,10 @@ PARAMS = [
 
 
 def resolve_dir(path: str) -> Path:
-    p = Path(path)
-    if p.is_absolute():
-        return p
-    root = os.environ.get("CLOTHFOLD_ROOT")
-    return (Path(root) / p) if root else p
+    """table_dir as a path: absolute as given, relative below the package share directory."""
+    from ..launcher import resource
+
+    return resource(path)
 
 
 class FoldPlannerNode(Node):
@@ -78,6 +79,10 @@ class FoldPlannerNode(Node):
     def on_keypoints(self, msg: Keypoints) -> None:
         try:
             kp, _ = rc.keypoints_from_msg(msg)
+            missing = [n for n in KEYPOINT_NAMES if n not in kp]
+            if missing:  # a partial set never replaces a complete one
+                raise ValueError(f"incomplete set: {len(missing)} of {len(KEYPOINT_NAMES)} keypoints missing "
+                                 f"({', '.join(missing)})")
         except ValueError as err:
             self.get_logger().error(f"keypoints ignored (keeping the last good ones): {err}")
             return

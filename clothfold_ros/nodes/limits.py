@@ -1,4 +1,5 @@
-"""Gripper motion limits checked before a fold is executed. Pure: no rclpy.
+"""Gripper motion limits: checked by trajectory_node before a fold is executed, and by the
+backends on every step (a driver enforces its own limits). Pure: no rclpy.
 
 Workspace: an axis-aligned box in the table frame (m). Speed: the peak Cartesian speed
 of each gripper path (m/s), i.e. 1.875 L / T for minimum-jerk timing along arc length.
@@ -41,3 +42,70 @@ def check_trajectory(trajectory: FoldTrajectory, rate_hz: float, lo: Sequence[fl
         return f"fold {trajectory.spec.name!r} needs {trajectory.spec.n_grippers} grippers; {n_grippers} available"
     _, pos, _ = trajectory.sample(rate_hz)
     return check_workspace(pos, lo, hi) or check_speed(trajectory, max_speed)
+
+
+def check_workspace_params(values: dict, changed: Sequence[str] = ()) -> str | None:
+    """Cross check of the workspace_min / workspace_max parameters (m); the reason names the
+    parameter being changed (workspace_max when only it changes, else workspace_min)."""
+    lo, hi = list(values["workspace_min"]), list(values["workspace_max"])
+    bad = [axis for axis, a, b in zip("xyz", lo, hi) if not a < b]
+    if not bad:
+        return None
+    if "workspace_max" in changed and "workspace_min" not in changed:
+        return f"workspace_max {hi} must be above workspace_min {lo} on every axis (not on {', '.join(bad)})"
+    return f"workspace_min {lo} must be below workspace_max {hi} on every axis (not on {', '.join(bad)})"
+
+
+def check_step(previous: dict, targets: dict, dt: float, lo: Sequence[float], hi: Sequence[float],
+               max_speed: float) -> str | None:
+    """A backend's own limits for one step of dt s: every target position (gripper -> Pose) inside
+    the box [lo, hi] (m) and reached from the previous position (gripper -> Pose) no faster than
+    max_speed (m/s). The reason, or None."""
+    lo_a, hi_a = np.asarray(lo, float), np.asarray(hi, float)
+    for g, pose in sorted(targets.items()):
+        p = np.asarray(pose.position, float)
+        if np.any(p < lo_a - 1e-9) or np.any(p > hi_a + 1e-9):
+            return (f"gripper_{g} target {np.round(p, 4).tolist()} m is outside the backend's workspace "
+                    f"[{', '.join(f'{v:g}' for v in lo_a)}] .. [{', '.join(f'{v:g}' for v in hi_a)}] m")
+        prev = previous.get(g)
+        if prev is not None and dt > 0:
+            speed = float(np.linalg.norm(p - np.asarray(prev.position, float))) / dt
+            if speed > max_speed * (1 + 1e-6) + 1e-9:
+                return (f"gripper_{g} target needs {speed:.3f} m/s over one {dt:g} s step; the backend's "
+                        f"limit is {max_speed:g} m/s")
+    return None
+
+
+# The search space of the lookup (trajectory.fan) and the ranges trajectory_node executes.
+HEIGHT_RATIO_RANGE = (0.1, 1.0)  # -
+TILT_RANGE_DEG = (0.0, 60.0)  # deg
+DURATION_RANGE = (0.5, 60.0)  # s
+SETTLE_RANGE = (0.0, 10.0)  # s
+LAYER_OFFSET_RANGE = (1.0, 8.0)  # x thickness
+
+
+def check_plan(plan) -> str | None:
+    """Reason a PlannedFold (ros_conversions) is outside what is executed, or None: a known fold
+    name, (h, tilt) inside the search space, duration and settle time in their ranges, one or two
+    grippers with matching pose / tilt sign arrays, tilt signs +-1, a unit horizontal fold line."""
+    from ..folding import FOLD_NAMES
+
+    s = plan.spec
+    if s.name not in FOLD_NAMES:
+        return f"unknown fold {s.name!r}; known folds: {', '.join(FOLD_NAMES)}"
+    for what, v, (lo, hi), unit in (("height_ratio", plan.height_ratio, HEIGHT_RATIO_RANGE, ""),
+                                    ("tilt_deg", plan.tilt_deg, TILT_RANGE_DEG, " deg"),
+                                    ("duration", plan.duration, DURATION_RANGE, " s"),
+                                    ("settle_time", plan.settle_time, SETTLE_RANGE, " s"),
+                                    ("layer_offset_factor", s.layer_offset_factor, LAYER_OFFSET_RANGE, "")):
+        if not lo <= v <= hi:
+            return f"{what} = {v:g}{unit} is outside [{lo:g}, {hi:g}]{unit}"
+    n = len(s.start_poses)
+    if not 1 <= n <= 2 or len(s.end_poses) != n or len(s.tilt_signs) != n:
+        return (f"a fold needs 1 or 2 grippers with as many end poses and tilt signs; got {n} start poses, "
+                f"{len(s.end_poses)} end poses, {len(s.tilt_signs)} tilt signs")
+    if any(abs(abs(x) - 1.0) > 1e-9 for x in s.tilt_signs):
+        return f"tilt_signs must be +1 or -1, got {list(s.tilt_signs)}"
+    if plan.stage < 0:
+        return f"stage must be >= 0, got {plan.stage}"
+    return None

@@ -85,16 +85,22 @@ class Param:
         return None
 
 
-CrossCheck = Callable[[dict[str, Value]], str | None]
+CrossCheck = Callable[[dict[str, Value], Sequence[str]], str | None]
+# set on every node by rclpy or the ROS tooling, never reported as unknown
+STANDARD = ("use_sim_time", "start_type_description_service")
 
 
-def declare(node: Node, params: Sequence[Param], cross_check: CrossCheck | None = None) -> None:
+def declare(node: Node, params: Sequence[Param], cross_check: CrossCheck | None = None) -> list[str]:
     """Declare `params` on `node` and refuse bad values (now and on every later set).
 
-    cross_check(values) sees all values after a change and returns a reason to refuse it
-    (e.g. workspace min < max). Raises rclpy's InvalidParameterValueException at start-up.
+    cross_check(values, changed) sees all values after a change of the names in `changed`
+    and returns a reason to refuse it (e.g. workspace min < max). Raises rclpy's
+    InvalidParameterValueException (or ValueError for a cross check) at start-up.
+    Parameters given to the node (params file, -p) that it does not declare - usually a
+    misspelt name - are logged as a warning with the known names; returns them.
     """
     by_name = {p.name: p for p in params}
+    declaring = [True]  # the cross check runs once everything is declared (see below)
 
     def on_set(changes: list[Parameter]) -> SetParametersResult:
         values = {n: node.get_parameter(n).value for n in by_name if node.has_parameter(n)}
@@ -107,8 +113,8 @@ def declare(node: Node, params: Sequence[Param], cross_check: CrossCheck | None 
                 node.get_logger().error(f"parameter refused: {reason}")
                 return SetParametersResult(successful=False, reason=reason)
             values[change.name] = change.value
-        if cross_check and all(n in values for n in by_name):
-            reason = cross_check(values)
+        if cross_check and not declaring[0] and all(n in values for n in by_name):
+            reason = cross_check(values, [c.name for c in changes])
             if reason:
                 node.get_logger().error(f"parameter refused: {reason}")
                 return SetParametersResult(successful=False, reason=reason)
@@ -116,10 +122,24 @@ def declare(node: Node, params: Sequence[Param], cross_check: CrossCheck | None 
 
     node.add_on_set_parameters_callback(on_set)
     node.declare_parameters("", [(p.name, p.default, p.descriptor()) for p in params])
+    declaring[0] = False
     if cross_check:
-        reason = cross_check({p.name: node.get_parameter(p.name).value for p in params})
+        given = [n for n in by_name if n in (getattr(node, "_parameter_overrides", {}) or {})]
+        reason = cross_check({p.name: node.get_parameter(p.name).value for p in params}, given)
         if reason:
             raise ValueError(f"bad parameters: {reason}")
+    unknown = unknown_overrides(node)
+    for name in unknown:
+        node.get_logger().warning(f"unknown parameter {name!r} ignored (misspelt?); {node.get_name()} declares: "
+                                  f"{', '.join(sorted(n for n in by_name))}")
+    return unknown
+
+
+def unknown_overrides(node: Node) -> list[str]:
+    """Names given to the node (params file, -p) that it has not declared."""
+    overrides = getattr(node, "_parameter_overrides", {}) or {}
+    return sorted(n for n in overrides if not node.has_parameter(n) and n not in STANDARD
+                  and not n.startswith("qos_overrides."))
 
 
 def value(node: Node, name: str) -> Any:

@@ -16,6 +16,7 @@ from clothfold_msgs.srv import PlanFold
 from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 
 from .. import ros_conversions as rc
 from . import common
@@ -24,7 +25,8 @@ from . import common
 class PipelineClient:
     def __init__(self, name: str = "clothfold_client") -> None:
         self.context = rclpy.Context()
-        rclpy.init(args=[], context=self.context)
+        # no rclpy signal handlers: the caller (clothfold demo) handles SIGINT/SIGTERM itself
+        rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = Node(name, context=self.context)
         self.cond = threading.Condition()
         self.keypoints: Keypoints | None = None

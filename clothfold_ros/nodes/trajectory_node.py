@@ -1,8 +1,10 @@
 """trajectory_node: executes fold specifications (action /execute_fold, clothfold_msgs/ExecuteFold).
 
 For one goal (a FoldSpec with height ratio, tilt, duration) it
-1. checks it (finite values, gripper count, workspace box, gripper speed limit) and that
-   no other fold runs; a refused goal is rejected with the reason logged;
+1. checks it (finite values; a known fold name; h, tilt inside the search space of the
+   lookup, duration and settle time in range: limits.check_plan; gripper count, workspace
+   box, gripper speed limit) and that no other fold runs; a refused goal is rejected with
+   the reason logged;
 2. picks the start time t0 = now + start_delay (node clock: /clock with use_sim_time, or
    wall time), publishes the spec on /fold/active and each gripper's whole path
    (nav_msgs/Path, latched) on /gripper_<i>/path;
@@ -14,6 +16,9 @@ For one goal (a FoldSpec with height ratio, tilt, duration) it
    grippers (position = open_position) stamped at the last sample;
 4. reports feedback (progress 0..1, time from start) and, once the backend's
    /fold/result for this fold arrives (wait_for_result), the action result.
+A fold that ends otherwise (cancelled, the clock stood still: backend gone, no result in
+time) always ends with a failed /fold/result: the backend's if it sends one within
+`failure_report_wait` s, else one published by this node with the reason.
 Everything in the table frame (m, z up).
 """
 from __future__ import annotations
@@ -36,7 +41,7 @@ from .. import ros_conversions as rc
 from ..pose import Pose
 from ..trajectory import FoldTrajectory
 from . import common, params
-from .limits import check_trajectory
+from .limits import check_plan, check_trajectory, check_workspace_params
 from .params import Param
 
 PARAMS = [
@@ -56,14 +61,12 @@ PARAMS = [
     Param("wait_for_result", True, "wait for the backend's /fold/result before finishing the goal"),
     Param("result_timeout", 600.0, "wall seconds to wait for /fold/result after the motion", range=(0.1, 36000.0)),
     Param("stall_timeout", 60.0, "abort when the clock stands still this many wall seconds", range=(0.1, 3600.0)),
+    Param("failure_report_wait", 5.0, "after a cancel or abort, wait this long (wall s) for the backend's failed "
+          "/fold/result before publishing one itself", range=(0.0, 600.0)),
 ]
 
 
-def _workspace_check(values: dict) -> str | None:
-    lo, hi = list(values["workspace_min"]), list(values["workspace_max"])
-    if any(a >= b for a, b in zip(lo, hi)):
-        return f"workspace_min {lo} must be below workspace_max {hi} on every axis"
-    return None
+_workspace_check = check_workspace_params
 
 
 class TrajectoryNode(Node):
@@ -79,6 +82,7 @@ class TrajectoryNode(Node):
         self.path_pubs = [self.create_publisher(Path, common.gripper_topic(i, "path"), common.LATCHED)
                           for i in range(n)]
         self.active_pub = self.create_publisher(FoldSpecMsg, common.FOLD_ACTIVE, common.LATCHED)
+        self.result_pub = self.create_publisher(FoldResult, common.FOLD_RESULT, common.RESULTS)
         self.create_subscription(FoldResult, common.FOLD_RESULT, self.on_result, common.RESULTS,
                                  callback_group=self.group)
         self.results: list[FoldResult] = []
@@ -94,10 +98,9 @@ class TrajectoryNode(Node):
     def prepare(self, spec_msg: FoldSpecMsg) -> tuple[rc.PlannedFold, FoldTrajectory]:
         """PlannedFold and trajectory of a goal; ValueError with the reason it is refused."""
         plan = rc.fold_spec_from_msg(spec_msg)
-        if not plan.duration > 0:
-            raise ValueError(f"duration must be > 0 s, got {plan.duration}")
-        if not plan.settle_time >= 0:
-            raise ValueError(f"settle_time must be >= 0 s, got {plan.settle_time}")
+        reason = check_plan(plan)
+        if reason:
+            raise ValueError(reason)
         traj = FoldTrajectory(plan.spec, plan.height_ratio, plan.tilt_deg, plan.duration)
         reason = check_trajectory(traj, params.value(self, "rate"), params.value(self, "workspace_min"),
                                   params.value(self, "workspace_max"), params.value(self, "max_speed"),
@@ -136,6 +139,7 @@ class TrajectoryNode(Node):
             self.cmd_pubs[i].publish(rc.gripper_command(i, pos, params.value(self, "max_effort"), stamp_ns))
 
     def execute(self, handle) -> ExecuteFold.Result:
+        self._started = None  # (plan, t0 ns) once the fold is under way
         try:
             return self._execute(handle)
         except Exception as err:  # noqa: BLE001 - never leave the node busy
@@ -146,10 +150,36 @@ class TrajectoryNode(Node):
                 handle.abort()
             except Exception:  # noqa: BLE001 - already finished
                 pass
-            return ExecuteFold.Result(success=False, message=f"{type(err).__name__}: {err}")
+            result = self._report_failure(handle, f"aborted: {err}")
+            return ExecuteFold.Result(success=False, message=f"{type(err).__name__}: {err}", result=result)
         finally:
             with self.lock:
                 self.busy = None
+
+    def _report_failure(self, handle, reason: str) -> FoldResult:
+        """Make sure a failed /fold/result for this fold is published: the backend's (waited for
+        failure_report_wait s; it reports grippers that opened early) or else this node's own."""
+        if self._started is not None:
+            plan, t0 = self._started
+        else:
+            try:
+                plan, t0 = rc.fold_spec_from_msg(handle.request.spec), self.now_ns()
+            except ValueError:
+                return FoldResult(success=False, reason=reason, loss=math.nan)
+        name = plan.spec.name
+        if params.value(self, "wait_for_result"):
+            got = self._wait_result(name, t0, params.value(self, "failure_report_wait"))
+            if got is not None:
+                if got.success:  # a backend that does not check: the fold did not run to its end
+                    self.get_logger().error(f"{name}: the backend reported success for a fold that was {reason}")
+                else:
+                    return got
+        result = FoldResult(header=rc.header(max(self.now_ns(), t0)), fold_name=name, stage=plan.stage,
+                            success=False, reason=f"{reason} (reported by trajectory_node)", loss=math.nan,
+                            height_ratio=plan.height_ratio, tilt_deg=plan.tilt_deg)
+        self.result_pub.publish(result)
+        self.get_logger().error(f"published a failed {common.FOLD_RESULT} for {name}: {result.reason}")
+        return result
 
     def _wait_clock(self, until_ns: int, stall: float, handle) -> str | None:
         """Wait until the clock reaches until_ns; reason on stall or cancel."""
@@ -181,6 +211,7 @@ class TrajectoryNode(Node):
                 raise RuntimeError(f"no clock: {reason}")
         times, pos, quat = traj.sample(rate)
         t0 = self.now_ns() + rc.seconds_to_ns(params.value(self, "start_delay"))
+        self._started = (plan, t0)
         stamps = [t0 + rc.seconds_to_ns(t) for t in times]
         poses = [[Pose(pos[k, g], quat[k, g]) for g in grippers] for k in range(len(times))]
         with self.results_cv:
@@ -222,7 +253,8 @@ class TrajectoryNode(Node):
         if cancelled:
             handle.canceled()
             log.warn(f"fold {spec.name} cancelled; grippers open at {t_open * 1e-9:.3f} s")
-            return ExecuteFold.Result(success=False, message="cancelled")
+            result = self._report_failure(handle, f"cancelled at {t_open * 1e-9:.3f} s")
+            return ExecuteFold.Result(success=False, message="cancelled", result=result)
         reason = self._wait_clock(t_open, stall, handle)
         if reason:
             raise RuntimeError(f"waiting for the end of the motion: {reason}")
@@ -234,8 +266,9 @@ class TrajectoryNode(Node):
             got = self._wait_result(spec.name, t0, params.value(self, "result_timeout"))
             if got is None:
                 handle.abort()
-                return ExecuteFold.Result(success=False, message=f"no {common.FOLD_RESULT} for {spec.name} within "
-                                          f"{params.value(self, 'result_timeout'):g} s", result=result)
+                why = f"no {common.FOLD_RESULT} from the backend within {params.value(self, 'result_timeout'):g} s"
+                result = self._report_failure(handle, why)
+                return ExecuteFold.Result(success=False, message=f"{spec.name}: {why}", result=result)
             result = got
         ok = bool(result.success)
         msg = f"{spec.name}: loss {result.loss:.6f} m" if ok else f"{spec.name} failed: {result.reason}"
