@@ -1,0 +1,93 @@
+"""A depth camera looking straight down at the table, as a point-cloud source.
+
+Frame: table frame, metres, z up, table top z = 0. The camera is orthographic (a height
+map): one ray per pixel of a regular grid of pitch `pitch` m over the view rectangle,
+returning the top-most cloth surface hit (z-buffer over the mesh triangles), so covered
+layers are not seen. Each return gets Gaussian depth noise (std `noise` m, along z) and is
+dropped with probability `dropout`; `table=True` also returns the table (z = 0) where no
+cloth is hit, like an unmasked depth image.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class DepthCamera:
+    """pitch: pixel size on the table (m); view: (x_min, x_max, y_min, y_max) m; noise: depth
+    noise std (m); dropout: fraction of returns lost (-); table: return table pixels too."""
+
+    pitch: float = 0.004
+    view: tuple[float, float, float, float] = (-1.0, 1.0, -0.7, 0.7)
+    noise: float = 0.002
+    dropout: float = 0.1
+    table: bool = False
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.pitch) and self.pitch > 0):
+            raise ValueError(f"pitch must be > 0 m, got {self.pitch}")
+        x0, x1, y0, y1 = (float(v) for v in self.view)
+        if not (x1 > x0 and y1 > y0 and all(math.isfinite(v) for v in self.view)):
+            raise ValueError(f"view must be (x_min, x_max, y_min, y_max) with min < max, got {self.view}")
+        if not (math.isfinite(self.noise) and self.noise >= 0):
+            raise ValueError(f"noise must be >= 0 m, got {self.noise}")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
+
+    def height_map(self, vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(xs (W,), ys (H,), z (H, W)): top surface height (m) at the pixel centres, NaN where
+        no triangle covers the pixel."""
+        v = np.asarray(vertices, dtype=float)
+        tri = np.asarray(triangles, dtype=np.int64)
+        x0, x1, y0, y1 = self.view
+        xs = np.arange(x0 + self.pitch / 2, x1, self.pitch)
+        ys = np.arange(y0 + self.pitch / 2, y1, self.pitch)
+        zbuf = np.full(len(xs) * len(ys), -np.inf)
+        if len(tri):
+            a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
+            lo = np.floor((np.minimum(np.minimum(a, b), c)[:, :2] - [x0, y0]) / self.pitch - 0.5).astype(int) + 1
+            hi = np.floor((np.maximum(np.maximum(a, b), c)[:, :2] - [x0, y0]) / self.pitch - 0.5).astype(int)
+            span = int(max(1, (hi - lo).max() + 1))
+            off = np.arange(span)
+            # candidate pixels of every triangle: its bounding box, as a (T, span, span) grid
+            shape = (len(tri), span, span)
+            ix = np.broadcast_to(lo[:, 0, None, None] + off[None, None, :], shape)
+            iy = np.broadcast_to(lo[:, 1, None, None] + off[None, :, None], shape)
+            inside_box = (ix <= hi[:, 0, None, None]) & (iy <= hi[:, 1, None, None])
+            inside_box &= (ix >= 0) & (ix < len(xs)) & (iy >= 0) & (iy < len(ys))
+            t, jy, jx = np.nonzero(inside_box)
+            px, py = x0 + (ix[t, jy, jx] + 0.5) * self.pitch, y0 + (iy[t, jy, jx] + 0.5) * self.pitch
+            # barycentric coordinates of the pixel centre in its triangle (top view)
+            e1, e2 = (b - a)[t, :2], (c - a)[t, :2]
+            det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+            ok = np.abs(det) > 1e-15
+            rx, ry = px - a[t, 0], py - a[t, 1]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u = (rx * e2[:, 1] - ry * e2[:, 0]) / det
+                w = (e1[:, 0] * ry - e1[:, 1] * rx) / det
+            ok &= (u >= -1e-12) & (w >= -1e-12) & (u + w <= 1 + 1e-12)
+            z = (a[t, 2] + u * (b - a)[t, 2] + w * (c - a)[t, 2])[ok]
+            pix = (iy[t, jy, jx] * len(xs) + ix[t, jy, jx])[ok]
+            np.maximum.at(zbuf, pix, z)
+        zbuf[~np.isfinite(zbuf)] = np.nan
+        return xs, ys, zbuf.reshape(len(ys), len(xs))
+
+    def cloud(self, vertices: np.ndarray, triangles: np.ndarray,
+              rng: np.random.Generator | int | None = None) -> np.ndarray:
+        """(P, 3) float64 points the camera returns for the cloth mesh (vertices (N, 3) m,
+        triangles (M, 3)): visible top surface, noisy, with dropout."""
+        rng = np.random.default_rng(rng)
+        xs, ys, z = self.height_map(vertices, triangles)
+        gx, gy = np.meshgrid(xs, ys)
+        hit = np.isfinite(z)
+        if self.table:
+            z = np.where(hit, z, 0.0)
+            hit = np.ones_like(hit)
+        pts = np.column_stack([gx[hit], gy[hit], z[hit]])
+        keep = rng.random(len(pts)) >= self.dropout
+        pts = pts[keep]
+        pts[:, 2] += rng.normal(0.0, self.noise, len(pts)) if self.noise > 0 else 0.0
+        return pts

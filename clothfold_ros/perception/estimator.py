@@ -1,0 +1,519 @@
+"""Shirt keypoints from a point cloud of the table seen from above (issue 13).
+
+Frame: the cloud is in the table frame (metres, z up, table top z = 0; transform camera
+clouds first). Steps:
+
+1. segment: keep finite points in the height band (min_height, max_height] above the
+   table; refuse empty / mostly invalid clouds, no cloth, several cloth blobs;
+2. top view: rasterise the cloth points (pixel `pixel` m), close small holes, take the
+   largest connected component and its outline (OpenCV), and the distance to the mask;
+3. fit the parametric shirt (9 shape parameters + scale, SPEC section 1) with a planar
+   pose (x, y, yaw) and, for a partly folded shirt, the folds done so far (each fold line
+   fitted: angle and offset about the line planned from the model's own keypoints) by
+   scipy.optimize.least_squares. Residuals: every observed outline point's distance to
+   the folded model's outline (flat edges and creases), and how far model outline points
+   lie outside the cloth mask. Hidden parts (a sleeve folded onto the body) cannot be seen
+   in a silhouette: for folded states pass the shape fitted on the flat shirt
+   (`shape_prior`), which is then kept fixed;
+4. keypoints with the folded-state semantics of `visible` (what a camera sees), their z
+   the median cloud height around them.
+
+`fit residual` = RMS distance (m) of the observed outline points to the fitted model
+outline. Bad clouds raise a `PerceptionError` subclass; a fit whose residual exceeds
+`max_residual` raises `PoorFitError` carrying the estimate.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, fields
+from typing import Sequence
+
+import numpy as np
+
+from ..folding import FOLD_NAMES, FoldSpec, fold_spec
+from ..garment import KEYPOINT_NAMES, SHAPES, ShirtShape, _outline_unit
+from .visible import FoldLine, ideal_visible_keypoints
+
+SHAPE_FIELDS = tuple(f.name for f in fields(ShirtShape))  # 9 parameters + scale
+# fit bounds (shirt-height units, deg, m): SPEC section 1's plausible ranges, widened a little
+SHAPE_BOUNDS = {
+    "bottom_width": (0.55, 0.80), "neck_width": (0.15, 0.45), "neck_depth": (0.0, 0.25),
+    "shoulder_width": (0.38, 0.82), "shoulder_height": (0.80, 0.99), "sleeve_width_start": (0.20, 0.36),
+    "sleeve_width_end": (0.12, 0.24), "sleeve_length": (0.03, 1.05), "sleeve_angle_deg": (-15.0, 65.0),
+    "scale": (0.3, 1.2),
+}
+FOLD_ANGLE_RANGE = math.radians(15.0)  # fitted fold line angle within +- this of the planned one
+FOLD_OFFSET_RANGE = 0.06  # m, fitted fold line offset within +- this of the planned one
+# a fold line FOLD_PRIOR_ANGLE rad or FOLD_PRIOR_OFFSET m off the planned one costs as much as
+# one outline point FOLD_PRIOR_WEIGHT m off the model
+FOLD_PRIOR_ANGLE, FOLD_PRIOR_OFFSET, FOLD_PRIOR_WEIGHT = 0.1, 0.02, 0.003
+
+
+class PerceptionError(ValueError):
+    """A cloud from which no keypoints can be estimated."""
+
+
+class BadCloudError(PerceptionError):
+    """Empty, malformed or mostly invalid (NaN) cloud."""
+
+
+class NoClothError(PerceptionError):
+    """Too few points or too small an area above the table."""
+
+
+class MultipleBlobsError(PerceptionError):
+    """More than one cloth-sized blob on the table."""
+
+
+class FitError(PerceptionError):
+    """The model fit did not converge."""
+
+
+class PoorFitError(PerceptionError):
+    """The fit converged but its residual is too large; `estimate` holds it."""
+
+    def __init__(self, message: str, estimate: "KeypointEstimate") -> None:
+        super().__init__(message)
+        self.estimate = estimate
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """pixel: top-view raster size (m); min_height/max_height: cloth height band (m above the
+    table); max_invalid_fraction: refuse clouds with more non-finite points; min_points,
+    min_area (m^2): less is 'no cloth'; blob_fraction: a second blob at least this fraction
+    of the largest is 'two blobs'; contour_points: outline points fitted; max_residual (m);
+    max_nfev: function evaluations per fit; tolerance: least_squares
+    ftol = xtol = gtol; spacing: model outline sample spacing (m)."""
+
+    pixel: float = 0.005
+    min_height: float = -0.01
+    max_height: float = 0.25
+    max_invalid_fraction: float = 0.5
+    min_points: int = 200
+    min_area: float = 0.02
+    blob_fraction: float = 0.05
+    contour_points: int = 200
+    max_residual: float = 0.01
+    max_nfev: int = 400
+    tolerance: float = 1e-5
+    spacing: float = 0.015
+
+
+@dataclass
+class KeypointEstimate:
+    """keypoints: name -> (3,) m (table frame, visible semantics); shape: fitted ShirtShape;
+    pose: (x m, y m, yaw rad) of the shirt frame in the table frame; folds: fitted fold lines
+    (table frame); residual: RMS outline distance (m); outline: (K, 2) model outline points
+    (table frame, consecutive points joined unless `outline_breaks` marks it)."""
+
+    keypoints: dict[str, np.ndarray]
+    shape: ShirtShape
+    pose: tuple[float, float, float]
+    folds: list[FoldLine]
+    residual: float
+    outline: np.ndarray
+    segments: np.ndarray = field(repr=False)  # (S, 2, 2) model outline segments, table frame
+    n_points: int = 0
+    nfev: int = 0
+    seconds: float = 0.0
+
+
+# -- segmentation and top view ---------------------------------------------------------------
+def segment(points: np.ndarray, config: EstimatorConfig = EstimatorConfig()) -> np.ndarray:
+    """Cloth points (P, 3) of a cloud (N, 3) in the table frame; PerceptionError if unusable."""
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise BadCloudError(f"cloud must have shape (N, 3), got {p.shape}")
+    if len(p) == 0:
+        raise BadCloudError("cloud is empty")
+    finite = np.all(np.isfinite(p), axis=1)
+    bad = 1.0 - finite.mean()
+    if bad > config.max_invalid_fraction:
+        raise BadCloudError(f"{bad:.0%} of the cloud's {len(p)} points are NaN/inf "
+                            f"(more than {config.max_invalid_fraction:.0%})")
+    p = p[finite]
+    cloth = p[(p[:, 2] > config.min_height) & (p[:, 2] <= config.max_height)]
+    if len(cloth) < config.min_points:
+        raise NoClothError(f"no cloth on the table: {len(cloth)} of {len(p)} points in the height band "
+                           f"({config.min_height:g}, {config.max_height:g}] m (need {config.min_points})")
+    return cloth
+
+
+@dataclass
+class TopView:
+    """Largest cloth blob seen from above: mask (H, W) uint8, origin (x, y) m of pixel (0, 0)'s
+    corner, pixel m, contour (C, 2) m (table frame, the estimated cloth edge), outside (H, W)
+    distance (m) beyond the cloth edge, area m^2."""
+
+    mask: np.ndarray
+    origin: np.ndarray
+    pixel: float
+    contour: np.ndarray
+    outside: np.ndarray
+    area: float
+    spacing: float  # m, mean distance between cloud points on the cloth
+
+    def distance_outside(self, xy: np.ndarray) -> np.ndarray:
+        """Distance (m) of points (N, 2) outside the mask (0 inside), bilinear; far = large."""
+        from scipy.ndimage import map_coordinates
+
+        ij = (xy - self.origin) / self.pixel - 0.5
+        d = map_coordinates(self.outside, [ij[:, 1], ij[:, 0]], order=1, mode="nearest")
+        # beyond the raster: add the distance to its border
+        h, w = self.outside.shape
+        over = np.maximum(0, np.maximum(-ij[:, 0], ij[:, 0] - (w - 1))) + np.maximum(
+            0, np.maximum(-ij[:, 1], ij[:, 1] - (h - 1)))
+        return d + over * self.pixel
+
+
+def top_view(cloth: np.ndarray, config: EstimatorConfig = EstimatorConfig()) -> TopView:
+    """Rasterise cloth points (P, 3), keep the largest blob, its outline and distance map."""
+    import cv2
+
+    px = config.pixel
+    margin = 4
+    lo = cloth[:, :2].min(axis=0) - margin * px
+    ij = np.floor((cloth[:, :2] - lo) / px).astype(np.int64)
+    w, h = ij.max(axis=0) + margin + 1
+    if w * h > 4000 * 4000:
+        raise BadCloudError(f"cloud spans {w * px:.1f} x {h * px:.1f} m: not a shirt on a table")
+    mask = np.zeros((h, w), np.uint8)
+    mask[ij[:, 1], ij[:, 0]] = 255
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    if n < 2:
+        raise NoClothError("no cloth blob in the top view")
+    areas = stats[1:, cv2.CC_STAT_AREA] * px * px
+    order = np.argsort(areas)[::-1]
+    if areas[order[0]] < config.min_area:
+        raise NoClothError(f"largest blob is {areas[order[0]]:.3f} m^2 (a shirt needs >= {config.min_area:g} m^2)")
+    if len(order) > 1 and areas[order[1]] >= config.blob_fraction * areas[order[0]]:
+        raise MultipleBlobsError(f"{int(np.sum(areas >= config.blob_fraction * areas[order[0]]))} separate blobs "
+                                 f"on the table ({areas[order[0]]:.3f} and {areas[order[1]]:.3f} m^2): "
+                                 "expected one shirt")
+    mask = np.where(labels == order[0] + 1, 255, 0).astype(np.uint8)
+    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel)
+    # fill holes: the cloth is one sheet seen from above
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    c = max(contours, key=cv2.contourArea)
+    mask = np.zeros_like(mask)
+    cv2.drawContours(mask, [c], -1, 255, thickness=cv2.FILLED)
+    contour = (c[:, 0, :].astype(float) + 0.5) * px + lo
+    # the outermost returns lie on average half a point spacing inside the cloth's edge:
+    # move the outline out by that much along its normal
+    n_in = int(np.count_nonzero(mask[ij[:, 1], ij[:, 0]]))
+    spacing = math.sqrt(cv2.countNonZero(mask) * px * px / max(n_in, 1))
+    tangent = np.roll(contour, -3, axis=0) - np.roll(contour, 3, axis=0)
+    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    probe = np.floor((contour + 2 * px * normal - lo) / px).astype(int)
+    probe = np.clip(probe, 0, [w - 1, h - 1])
+    if np.mean(mask[probe[:, 1], probe[:, 0]] > 0) > 0.5:
+        normal = -normal  # the normal must point out of the mask
+    contour = contour + 0.5 * spacing * normal
+    outside = cv2.distanceTransform(255 - mask, cv2.DIST_L2, 5).astype(float) * px
+    outside = np.maximum(outside - 0.5 * (spacing + px), 0.0)
+    return TopView(mask, lo, px, contour, outside, float(areas[order[0]]), spacing)
+
+
+# -- the shirt model ------------------------------------------------------------------------
+class _Params:
+    """Duck-typed ShirtShape for garment._outline_unit without validation (fit iterates)."""
+
+    armpit_offset = ShirtShape.armpit_offset
+    armpit_drop = ShirtShape.armpit_drop
+
+    def __init__(self, values: np.ndarray) -> None:
+        for k, v in zip(SHAPE_FIELDS, values):
+            setattr(self, k, float(v))
+
+
+def model_outline(shape_values: np.ndarray) -> np.ndarray:
+    """(13, 2) outline (m, shirt frame: centred, +y to the neck) of shape parameters in
+    SHAPE_FIELDS order (unvalidated)."""
+    s = _Params(shape_values)
+    return (_outline_unit(s) - np.array([0.0, 0.5])) * s.scale
+
+
+def _rot(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s], [s, c]])
+
+
+def _line(point: np.ndarray, angle: float, side: float) -> FoldLine:
+    d = np.array([math.cos(angle), math.sin(angle)])
+    return FoldLine("", point, side * np.array([-d[1], d[0]]))
+
+
+def _fold_xy(p: np.ndarray, lines: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Mirror points (N, 2) through (point, normal) lines in turn; (folded, (N, K) moved)."""
+    p = p.copy()
+    moved = np.zeros((len(p), len(lines)), bool)
+    for k, (q, n) in enumerate(lines):
+        s = (p - q) @ n
+        m = s > 1e-9
+        p[m] -= 2 * s[m, None] * n
+        moved[:, k] = m
+    return p, moved
+
+
+class _Model:
+    """Outline samples of the folded shirt model for a parameter vector."""
+
+    def __init__(self, shape0: np.ndarray, fold_names: Sequence[str], free_shape: bool, spacing: float = 0.01,
+                 fixed: Sequence[FoldLine] = ()):
+        self.names = list(fold_names)
+        self.fixed = list(fixed)  # the first folds' lines, shirt frame, kept as they are
+        self.free_shape = free_shape
+        self.shape0 = np.asarray(shape0, float)
+        o = model_outline(self.shape0)
+        lengths = np.linalg.norm(np.roll(o, -1, axis=0) - o, axis=1)
+        self.counts = np.maximum(3, np.ceil(lengths / spacing).astype(int))
+        self.edge = np.repeat(np.arange(13), self.counts)
+        self.u = np.concatenate([np.arange(c) / c for c in self.counts])
+        self.crease_u = np.linspace(0.0, 1.0, 32)
+        self.nominal = self._nominal_lines(self.shape0)
+
+    def _nominal_lines(self, shape: np.ndarray) -> list[tuple[np.ndarray, float, float]]:
+        """(point, angle, side) per fold, planned like the pipeline from the model's visible keypoints."""
+        out: list[tuple[np.ndarray, float, float]] = []
+        done: list[FoldLine] = list(self.fixed)
+        o = model_outline(shape)
+        for name in self.names[len(self.fixed):]:
+            kp2 = ideal_visible_keypoints(o, done)
+            kp = {k: np.array([x, y, 0.0]) for k, (x, y) in zip(KEYPOINT_NAMES, kp2)}
+            spec = fold_spec(name, kp, folds_done=[ln.name for ln in done])
+            d, n = spec.line_direction[:2], spec.normal[:2]
+            side = 1.0 if d[0] * n[1] - d[1] * n[0] > 0 else -1.0
+            out.append((spec.line_point[:2].copy(), math.atan2(d[1], d[0]), side))
+            done.append(FoldLine(name, spec.line_point[:2].copy(), n.copy()))
+        return out
+
+    def split(self, x: np.ndarray):
+        i = 0
+        shape = self.shape0
+        if self.free_shape:
+            shape = x[:len(SHAPE_FIELDS)]
+            i = len(SHAPE_FIELDS)
+        pose = x[i:i + 3]
+        f = x[i + 3:].reshape(-1, 2)
+        return shape, pose, f
+
+    def lines(self, f: np.ndarray) -> list[FoldLine]:
+        """Fold lines in the shirt frame for the fold parameters (K, 2) = (d angle rad, d offset m)."""
+        out = list(self.fixed)
+        for (p, a, s), (da, dn), name in zip(self.nominal, f, self.names[len(self.fixed):]):
+            ln = _line(p, a + da, s)
+            out.append(FoldLine(name, p + dn * ln.normal, ln.normal))
+        return out
+
+    def samples(self, x: np.ndarray):
+        """(points (M, 2) table frame, segment start ids, segment end ids) of the folded model:
+        flat outline samples and, per fold, its crease (the fold line across the cloth as it
+        lay then), mirrored fold by fold; segments cut by a fold are dropped."""
+        shape, pose, f = self.split(x)
+        o = model_outline(shape)
+        a, b = o[self.edge], np.roll(o, -1, axis=0)[self.edge]
+        pts = a + self.u[:, None] * (b - a)
+        sa = np.arange(len(pts))
+        sb = np.roll(sa, -1)
+        sig = np.zeros(len(pts), np.int64)  # bit k: moved by fold k
+        for k, ln in enumerate(self.lines(f)):
+            q, n = ln.point, ln.normal
+            s = (pts - q) @ n
+            cross = (sig[sa] == sig[sb]) & ((s[sa] > 0) != (s[sb] > 0))
+            if np.count_nonzero(cross) >= 2:
+                i, j = sa[cross], sb[cross]
+                t = s[i] / (s[i] - s[j])
+                d = np.array([-n[1], n[0]])
+                along = (pts[i] + t[:, None] * (pts[j] - pts[i]) - q) @ d
+                crease = q + d * (along.min() + self.crease_u[:, None] * (along.max() - along.min()))
+                idx = np.arange(len(pts), len(pts) + len(crease))
+                pts = np.vstack([pts, crease])
+                sig = np.r_[sig, np.zeros(len(crease), np.int64)]
+                s = np.r_[s, np.zeros(len(crease))]
+                sa, sb = np.r_[sa, idx[:-1]], np.r_[sb, idx[1:]]
+            m = s > 1e-9
+            pts[m] -= 2 * s[m, None] * n
+            sig[m] |= 1 << k
+        ok = sig[sa] == sig[sb]
+        return pts @ _rot(pose[2]).T + pose[:2], sa[ok], sb[ok]
+
+
+def _outline_distances(contour: np.ndarray, pts: np.ndarray, sa: np.ndarray, sb: np.ndarray) -> np.ndarray:
+    """Distance (m) of each contour point (C, 2) to the nearest model segment (pts[sa], pts[sb]),
+    searched among the segments at the two model points nearest to it."""
+    from scipy.spatial import cKDTree
+
+    _, near = cKDTree(pts).query(contour, k=2)
+    after = np.full(len(pts), -1)
+    before = np.full(len(pts), -1)
+    after[sa] = np.arange(len(sa))
+    before[sb] = np.arange(len(sb))
+    cand = np.concatenate([after[near], before[near]], axis=1)  # (C, 4) segment ids, -1 = none
+    seg = np.maximum(cand, 0)
+    a, b = pts[sa[seg]], pts[sb[seg]]  # (C, 4, 2)
+    ab = b - a
+    q = contour[:, None, :]
+    t = np.clip(np.sum((q - a) * ab, axis=2) / np.maximum(np.sum(ab * ab, axis=2), 1e-18), 0.0, 1.0)
+    d = np.linalg.norm(q - (a + t[..., None] * ab), axis=2)
+    d[cand < 0] = np.inf
+    return np.minimum(d.min(axis=1), np.linalg.norm(contour - pts[near[:, 0]], axis=1))
+
+
+# -- the estimator ----------------------------------------------------------------------------
+def _shape_vector(shape: ShirtShape) -> np.ndarray:
+    return np.array([getattr(shape, k) for k in SHAPE_FIELDS], float)
+
+
+def _moments(xy: np.ndarray) -> tuple[np.ndarray, float]:
+    c = xy.mean(axis=0)
+    cov = np.cov((xy - c).T)
+    w, v = np.linalg.eigh(cov)
+    major = v[:, np.argmax(w)]
+    return c, math.atan2(major[1], major[0])
+
+
+def _area_points(outline: np.ndarray, spacing: float = 0.01) -> np.ndarray:
+    import shapely
+
+    poly = shapely.Polygon(outline)
+    x0, y0, x1, y1 = poly.bounds
+    gx, gy = np.meshgrid(np.arange(x0, x1, spacing), np.arange(y0, y1, spacing))
+    inside = shapely.contains_xy(poly, gx, gy)
+    return np.column_stack([gx[inside], gy[inside]])
+
+
+def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | FoldLine] = (),
+                       prior: KeypointEstimate | None = None, shape_prior: ShirtShape | None = None,
+                       pose_prior: Sequence[float] | None = None,
+                       config: EstimatorConfig = EstimatorConfig()) -> KeypointEstimate:
+    """Estimate the shirt's visible keypoints from a cloud (N, 3) m in the table frame.
+
+    folds: the folds done so far, in order (names, or specs whose names are used; the lines
+    are fitted, starting from the lines planned from the model's own keypoints).
+    prior: the estimate of an earlier stage of the same shirt: its shape is kept, its pose
+    is the start, and the folds it had fitted keep their lines (relative to the shirt) when
+    `folds` starts with them; only the newer folds' lines are fitted (a fold hides most of
+    the earlier creases). shape_prior / pose_prior (x m, y m, yaw rad) without a prior: the
+    shape kept fixed when folds are given (else the start of the fit), the pose to start
+    from (else the blob's moments, best of four headings)."""
+    from scipy.optimize import least_squares
+
+    tic = time.process_time()
+    names = [f if isinstance(f, str) else f.name for f in folds]
+    unknown = [n for n in names if n not in FOLD_NAMES]
+    if unknown:
+        raise ValueError(f"unknown folds {unknown}; known: {', '.join(FOLD_NAMES)}")
+    cloth = segment(points, config)
+    view = top_view(cloth, config)
+    step = max(1, len(view.contour) // config.contour_points)
+    contour = view.contour[::step]
+
+    fixed: list[FoldLine] = []
+    if prior is not None:
+        shape_prior, pose_prior = prior.shape, prior.pose
+        prior_names = [ln.name for ln in prior.folds]
+        if names[:len(prior_names)] == prior_names:
+            r_inv = _rot(-prior.pose[2])
+            t = np.asarray(prior.pose[:2])
+            fixed = [FoldLine(ln.name, r_inv @ (ln.point - t), r_inv @ ln.normal) for ln in prior.folds]
+    free_shape = not names or shape_prior is None
+    shape0 = _shape_vector(shape_prior if shape_prior is not None else SHAPES[1])
+    if not names and shape_prior is None:  # start at the area-matched default shirt
+        import shapely
+
+        shape0[-1] *= math.sqrt(view.area / shapely.Polygon(model_outline(shape0)).area)
+    model = _Model(shape0, names, free_shape, spacing=config.spacing, fixed=fixed)
+    lo_s = np.array([SHAPE_BOUNDS[k][0] for k in SHAPE_FIELDS])
+    hi_s = np.array([SHAPE_BOUNDS[k][1] for k in SHAPE_FIELDS])
+    shape0 = np.clip(shape0, lo_s + 1e-6, hi_s - 1e-6)
+    model.shape0 = shape0
+    n_f = len(names) - len(fixed)
+    f_lo = np.tile([-FOLD_ANGLE_RANGE, -FOLD_OFFSET_RANGE], n_f)
+    f_hi = -f_lo
+    w_out = 1.0
+
+    def residuals(x: np.ndarray, mdl: _Model) -> np.ndarray:
+        pts, sa, sb = mdl.samples(x)
+        r1 = _outline_distances(contour, pts, sa, sb)
+        r2 = view.distance_outside(pts) * w_out * math.sqrt(len(contour) / len(pts))
+        # weak pull of the fitted fold lines toward the planned ones (where a crease is hidden)
+        r3 = FOLD_PRIOR_WEIGHT * (mdl.split(x)[2] / [FOLD_PRIOR_ANGLE, FOLD_PRIOR_OFFSET]).ravel()
+        return np.concatenate([r1, r2, r3])
+
+    def pack(shape, pose, f):
+        return np.concatenate([shape if free_shape else [], pose, f.ravel()])
+
+    # start: align the model's area moments with the blob's, four headings
+    cm, yaw_m = _moments(_mask_points(view))
+    folded_area, _ = _fold_xy(_area_points(model_outline(shape0)),
+                              [(ln.point, ln.normal) for ln in model.lines(np.zeros((n_f, 2)))])
+    cmod, yaw_mod = _moments(folded_area)
+    if pose_prior is not None:
+        starts = [np.asarray(pose_prior, float)]
+    else:
+        starts = []
+        for k in range(4):
+            yaw = yaw_m - yaw_mod + k * math.pi / 2
+            starts.append(np.r_[cm - _rot(yaw) @ cmod, yaw])
+    pose_lo = lambda p: np.r_[p[:2] - 0.3, p[2] - math.pi]  # noqa: E731
+    pose_hi = lambda p: np.r_[p[:2] + 0.3, p[2] + math.pi]  # noqa: E731
+    if len(starts) > 1:  # the heading whose start explains the outline best
+        x_try = [np.r_[p0, np.zeros(2 * n_f)] for p0 in starts]
+        coarse = _Model(shape0, names, False, spacing=0.02, fixed=fixed)
+        cost = [np.sum(np.sqrt(1.0 + (residuals(x, coarse) / 0.01) ** 2) - 1.0) for x in x_try]
+        p_start = starts[int(np.argmin(cost))]
+    else:
+        p_start = starts[0]
+    x0 = pack(shape0, p_start, np.zeros((n_f, 2)))
+    lo = pack(lo_s, pose_lo(p_start), f_lo)
+    hi = pack(hi_s, pose_hi(p_start), f_hi)
+    x_scale = pack(np.r_[[0.05] * 8, 5.0, 0.05], [0.02, 0.02, 0.05], np.tile([0.05, 0.02], n_f))
+    fit = least_squares(residuals, np.clip(x0, lo + 1e-9, hi - 1e-9), args=(model,), bounds=(lo, hi),
+                        loss="soft_l1", f_scale=0.005, max_nfev=config.max_nfev, x_scale=x_scale,
+                        ftol=config.tolerance, xtol=config.tolerance, gtol=config.tolerance)
+    if fit.status <= 0 or not np.all(np.isfinite(fit.x)):
+        raise FitError(f"shirt model fit did not converge: {fit.message} ({fit.nfev} evaluations)")
+    shape_v, pose, f = model.split(fit.x)
+    try:
+        shape = ShirtShape(*shape_v)
+    except ValueError as err:
+        raise FitError(f"fitted shirt shape is invalid: {err}") from err
+    pts, sa, sb = model.samples(fit.x)
+    resid = float(np.sqrt(np.mean(_outline_distances(contour, pts, sa, sb) ** 2)))
+    r = _rot(pose[2])
+    lines_shirt = model.lines(f)
+    kp2 = ideal_visible_keypoints(model_outline(shape_v), lines_shirt) @ r.T + pose[:2]
+    lines = [FoldLine(ln.name, r @ ln.point + pose[:2], r @ ln.normal) for ln in lines_shirt]
+    keypoints = _with_height(kp2, cloth)
+    est = KeypointEstimate(keypoints, shape, (float(pose[0]), float(pose[1]), float(pose[2])), lines, resid, pts,
+                           np.stack([pts[sa], pts[sb]], axis=1), len(cloth), int(fit.nfev),
+                           time.process_time() - tic)
+    if not resid <= config.max_residual:
+        raise PoorFitError(f"fit residual {resid * 1e3:.1f} mm exceeds max_residual "
+                           f"{config.max_residual * 1e3:.1f} mm: the cloud does not look like the shirt model "
+                           f"with folds [{', '.join(names)}]", est)
+    return est
+
+
+def _mask_points(view: TopView) -> np.ndarray:
+    iy, ix = np.nonzero(view.mask)
+    return (np.column_stack([ix, iy]) + 0.5) * view.pixel + view.origin
+
+
+def _with_height(kp2: np.ndarray, cloth: np.ndarray, radius: float = 0.02) -> dict[str, np.ndarray]:
+    """Keypoints (13, 2) with z = the median cloud height within `radius` m (0 if none)."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(cloth[:, :2])
+    out = {}
+    for name, p in zip(KEYPOINT_NAMES, kp2):
+        idx = tree.query_ball_point(p, radius)
+        z = float(np.median(cloth[idx, 2])) if idx else 0.0
+        out[name] = np.array([p[0], p[1], max(z, 0.0)])
+    return out
+
