@@ -82,7 +82,7 @@ class PoorFitError(PerceptionError):
 class EstimatorConfig:
     """pixel: top-view raster size (m); min_height/max_height: cloth height band (m above the
     table); max_invalid_fraction: refuse clouds with more non-finite points; min_points,
-    min_area (m^2): less is 'no cloth'; blob_fraction: a second blob at least this fraction
+    min_area (m^2): less is 'no cloth', a blob over max_area (m^2) is the table; blob_fraction: a second blob at least this fraction
     of the largest is 'two blobs'; contour_points: outline points fitted; max_residual (m);
     max_nfev: function evaluations per fit; tolerance: least_squares
     ftol = xtol = gtol; spacing: model outline sample spacing (m)."""
@@ -93,6 +93,7 @@ class EstimatorConfig:
     max_invalid_fraction: float = 0.5
     min_points: int = 200
     min_area: float = 0.02
+    max_area: float = 1.2
     blob_fraction: float = 0.05
     contour_points: int = 200
     max_residual: float = 0.01
@@ -190,6 +191,9 @@ def top_view(cloth: np.ndarray, config: EstimatorConfig = EstimatorConfig()) -> 
     order = np.argsort(areas)[::-1]
     if areas[order[0]] < config.min_area:
         raise NoClothError(f"largest blob is {areas[order[0]]:.3f} m^2 (a shirt needs >= {config.min_area:g} m^2)")
+    if areas[order[0]] > config.max_area:
+        raise NoClothError(f"largest blob is {areas[order[0]]:.2f} m^2, more than any shirt (max_area "
+                           f"{config.max_area:g} m^2): the table is not separated from the cloth (raise min_height)")
     if len(order) > 1 and areas[order[1]] >= config.blob_fraction * areas[order[0]]:
         raise MultipleBlobsError(f"{int(np.sum(areas >= config.blob_fraction * areas[order[0]]))} separate blobs "
                                  f"on the table ({areas[order[0]]:.3f} and {areas[order[1]]:.3f} m^2): "
@@ -490,7 +494,8 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
     kp2 = ideal_visible_keypoints(model_outline(shape_v), lines_shirt) @ r.T + pose[:2]
     lines = [FoldLine(ln.name, r @ ln.point + pose[:2], r @ ln.normal) for ln in lines_shirt]
     keypoints = _with_height(kp2, cloth)
-    est = KeypointEstimate(keypoints, shape, (float(pose[0]), float(pose[1]), float(pose[2])), lines, resid, pts,
+    yaw = math.atan2(math.sin(pose[2]), math.cos(pose[2]))
+    est = KeypointEstimate(keypoints, shape, (float(pose[0]), float(pose[1]), yaw), lines, resid, pts,
                            np.stack([pts[sa], pts[sb]], axis=1), len(cloth), int(fit.nfev),
                            time.process_time() - tic)
     if not resid <= config.max_residual:
