@@ -1,33 +1,92 @@
 """keypoint_node: the shirt's semantic keypoints on /keypoints (clothfold_msgs/Keypoints, latched).
 
-source = "cloth_state": subscribes /cloth/state and publishes the positions of the
-keypoint vertices of the current mesh (so the keypoints track the cloth as it folds),
-stamped like the state, frame "table". source = "model": publishes the flat shirt's
-keypoints (parameters shape, max_area) once a second, for backends without a cloth
-(kinematic_robot_node); a real robot replaces this node by a perception node publishing
-/keypoints. A bad cloth state (NaN, wrong sizes) is logged and skipped; the last good
-keypoints stay published.
+Keypoints have the folded-state semantics of `clothfold_ros.perception.visible`: what a
+camera looking down sees on the cloth as it lies now (after both side folds the hem
+corners are the folded outline's corners). The folds done are learnt from the pipeline:
+/fold/active names the fold being executed, a successful /fold/result completes it;
+~/reset (std_srvs/Trigger) forgets them (a cloth laid flat again).
+
+source = "points" (a real robot's camera, or the sim's /cloth/points): every cloud on
+`points_topic` (sensor_msgs/PointCloud2, float x, y, z) in frame `points_frame` is moved
+into the table frame by the fixed `table_from_camera` transform and fitted with the shirt
+model (`perception.estimator`, with the folds done; each stage starts from the previous
+estimate). Publishes /keypoints (vertex ids -1) and the fitted outline as a
+visualization_msgs/Marker LINE_LIST on /keypoints/outline. Clouds arriving while a fold
+is executing are skipped (the cloth moves, the grippers are in view). A bad cloud (empty,
+NaN, no cloth, two blobs, no convergence) is logged with the reason and skipped; a fit
+whose residual exceeds `max_residual` is logged as such and its outline published in
+red (namespace "rejected"), not its keypoints. The last good keypoints stay published.
+
+source = "cloth_state": subscribes /cloth/state and publishes the visible keypoints of
+the current mesh (material keypoint vertices while flat; vertex id -1 for keypoints that
+are not a vertex); the flat mesh must be the sim's (parameters shape, max_area).
+source = "model": the flat shirt's keypoints once a second, for backends without a cloth.
 """
 from __future__ import annotations
 
 import sys
 
 import numpy as np
-from clothfold_msgs.msg import ClothState, Keypoints
+from clothfold_msgs.msg import ClothState, FoldResult, FoldSpec as FoldSpecMsg, Keypoints
+from geometry_msgs.msg import Point
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from sensor_msgs.msg import PointCloud2, PointField
+from std_msgs.msg import ColorRGBA
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import Marker
 
 from .. import ros_conversions as rc
 from . import common, params
 from .params import Param
 
+OUTLINE_TOPIC = "/keypoints/outline"
+STALE_AFTER = 30.0  # s past a fold's end without its result: the fold is no longer taken as executing
+
 PARAMS = [
-    Param("source", "cloth_state", "where keypoints come from: the cloth state topic or the flat shirt model",
-          choices=("cloth_state", "model"), read_only=True),
+    Param("source", "cloth_state", "where keypoints come from: a point cloud, the cloth state topic or the flat "
+          "shirt model", choices=("points", "cloth_state", "model"), read_only=True),
     params.SHAPE,
-    Param("max_area", 1e-3, "mesh max triangle area (m^2) of the model shirt (source = model)",
+    Param("max_area", 1e-3, "mesh max triangle area (m^2) of the model shirt (source = model; cloth_state: the sim's)",
           range=(1e-5, 1e-2), read_only=True),
     Param("model_period", 1.0, "republish period of the model keypoints (s)", range=(0.05, 60.0)),
+    Param("points_topic", "/cloth/points", "sensor_msgs/PointCloud2 topic (source = points)", read_only=True),
+    Param("points_frame", "table", "frame_id the clouds must have; table_from_camera maps it to the table frame",
+          read_only=True),
+    Param("table_from_camera", [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+          "fixed transform of cloud points into the table frame: x y z (m), qx qy qz qw", length=7, read_only=True),
+    Param("min_height", -0.01, "cloth points lie above this height over the table (m)", range=(-1.0, 1.0)),
+    Param("max_height", 0.25, "and at most this high (m): higher points (grippers, arm) are ignored",
+          range=(0.0, 2.0)),
+    Param("pixel", 0.005, "top-view raster size (m)", range=(0.001, 0.05)),
+    Param("max_residual", 0.01, "a fit with a larger RMS outline residual (m) is rejected", range=(0.0005, 0.5)),
 ]
+
+
+def cloud_from_msg(m: PointCloud2) -> np.ndarray:
+    """(N, 3) float64 x, y, z of a PointCloud2 (float32/float64 fields, any point_step,
+    organised or not; NaN points kept). ValueError for a malformed message."""
+    types = {PointField.FLOAT32: "f4", PointField.FLOAT64: "f8"}
+    by_name = {f.name: f for f in m.fields}
+    missing = [c for c in "xyz" if c not in by_name]
+    if missing:
+        raise ValueError(f"cloud has no field(s) {', '.join(missing)} (fields: {[f.name for f in m.fields]})")
+    n = int(m.width) * int(m.height)
+    if n == 0:
+        return np.zeros((0, 3))
+    step = int(m.point_step)
+    if len(m.data) < n * step:
+        raise ValueError(f"cloud data has {len(m.data)} bytes, {n} points of {step} bytes need {n * step}")
+    endian = ">" if m.is_bigendian else "<"
+    cols = []
+    for c in "xyz":
+        f = by_name[c]
+        if f.datatype not in types:
+            raise ValueError(f"cloud field {c} has datatype {f.datatype}; only FLOAT32/FLOAT64 are supported")
+        dt = np.dtype({"names": [c], "formats": [endian + types[f.datatype]], "offsets": [f.offset],
+                       "itemsize": step})
+        cols.append(np.frombuffer(bytes(m.data[:n * step]), dtype=dt, count=n)[c].astype(float))
+    return np.column_stack(cols)
 
 
 class KeypointNode(Node):
@@ -37,8 +96,37 @@ class KeypointNode(Node):
         self.pub = self.create_publisher(Keypoints, common.KEYPOINTS, common.LATCHED)
         self.count = 0
         self.errors = 0
+        self.folds: list = []  # core FoldSpecs of the folds done, in order
+        self.active = None  # the fold being executed (PlannedFold), None when the cloth rests
+        self.failed = None  # a fold that failed: the cloth may or may not be folded by it
+        self.prior = None  # the last good estimate (source = points)
+        self.skipped = None  # (callback, msg) of the last cloth message skipped while a fold ran
+        self._garment = None
         source = params.value(self, "source")
-        if source == "cloth_state":
+        if source in ("points", "cloth_state"):
+            self.create_subscription(FoldSpecMsg, common.FOLD_ACTIVE, self.on_active, common.LATCHED)
+            self.create_subscription(FoldResult, common.FOLD_RESULT, self.on_result, common.RESULTS)
+            self.create_service(Trigger, "~/reset", self.on_reset)
+        if source == "points":
+            from ..perception.estimator import EstimatorConfig
+
+            self.config = EstimatorConfig(pixel=params.value(self, "pixel"),
+                                          min_height=params.value(self, "min_height"),
+                                          max_height=params.value(self, "max_height"),
+                                          max_residual=params.value(self, "max_residual"))
+            t = params.value(self, "table_from_camera")
+            q = np.asarray(t[3:], float)
+            if np.linalg.norm(q) < 1e-6:
+                raise ValueError("table_from_camera has a zero quaternion")
+            from scipy.spatial.transform import Rotation
+
+            self.rotation = Rotation.from_quat(q / np.linalg.norm(q)).as_matrix()
+            self.translation = np.asarray(t[:3], float)
+            self.outline_pub = self.create_publisher(Marker, OUTLINE_TOPIC, common.LATCHED)
+            topic = params.value(self, "points_topic")
+            self.create_subscription(PointCloud2, topic, self.on_points, common.LATCHED)
+            self.get_logger().info(f"publishing keypoints estimated from the point cloud on {topic}")
+        elif source == "cloth_state":
             self.create_subscription(ClothState, common.CLOTH_STATE, self.on_state, common.LATCHED)
             self.get_logger().info(f"publishing keypoints of the cloth on {common.CLOTH_STATE}")
         else:
@@ -50,23 +138,165 @@ class KeypointNode(Node):
             self.create_timer(params.value(self, "model_period"), self.publish_model)
             self.get_logger().info(f"publishing the flat model shirt's keypoints (shape {params.value(self, 'shape')})")
 
+    # -- the folds done ----------------------------------------------------------------------------
+    def on_active(self, msg: FoldSpecMsg) -> None:
+        try:
+            self.active = rc.fold_spec_from_msg(msg)
+        except ValueError as err:
+            self.get_logger().error(f"bad /fold/active ignored: {err}")
+
+    def on_result(self, msg: FoldResult) -> None:
+        active, self.active = self.active, None
+        skipped, self.skipped = self.skipped, None
+        if skipped is not None:  # the cloth message that came before this result (other topic, any order)
+            self.call_later(skipped)
+        if active is None or active.spec.name != msg.fold_name:
+            self.get_logger().warn(f"result of fold {msg.fold_name!r} without its /fold/active spec: "
+                                   "the fold history is not changed")
+            return
+        if msg.success:
+            self.folds.append(active.spec)
+            self.failed = None
+            self.get_logger().info(f"fold {msg.fold_name} done; folds so far: {self.fold_names()}")
+        else:
+            self.failed = active.spec
+            self.get_logger().warn(f"fold {msg.fold_name} failed ({msg.reason}): the next estimate tries the cloth "
+                                   "with and without it")
+
+    def call_later(self, call) -> None:
+        """Run call = (callback, msg) once on the executor, after the current callback."""
+        def once():
+            timer.cancel()
+            self.destroy_timer(timer)
+            call[0](call[1])
+
+        timer = self.create_timer(0.001, once, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def on_reset(self, _req, resp):
+        self.folds, self.failed, self.prior, self.active = [], None, None, None
+        resp.success, resp.message = True, "fold history cleared: the cloth is taken to be flat"
+        self.get_logger().info(resp.message)
+        return resp
+
+    def folding(self, stamp_ns: int) -> bool:
+        """Whether a fold is executing at stamp_ns. A latched /fold/active of a fold whose
+        result this node never saw (it started later) is given up STALE_AFTER s after its end."""
+        a = self.active
+        if a is None:
+            return False
+        if stamp_ns > a.stamp_ns + rc.seconds_to_ns(a.duration + a.settle_time + STALE_AFTER):
+            self.get_logger().warn(f"no result seen for fold {a.spec.name}: its outcome is taken as unknown")
+            self.active, self.failed = None, a.spec
+            return False
+        return True
+
+    def fold_names(self, extra=None) -> list[str]:
+        return [s.name for s in self.folds] + ([extra.name] if extra is not None else [])
+
+    # -- source = points ------------------------------------------------------------------------------
+    def on_points(self, msg: PointCloud2) -> None:
+        from ..perception.estimator import PerceptionError, PoorFitError, estimate_keypoints
+
+        stamp = rc.time_to_ns(msg.header.stamp)
+        if self.folding(stamp):
+            self.skipped = (self.on_points, msg)  # a fold is moving the cloth: handled after its result
+            return
+        try:
+            if msg.header.frame_id != params.value(self, "points_frame"):
+                raise ValueError(f"cloud frame is {msg.header.frame_id!r}; points_frame is "
+                                 f"{params.value(self, 'points_frame')!r}")
+            pts = cloud_from_msg(msg) @ self.rotation.T + self.translation
+            candidates = [(self.fold_names(), self.prior)]
+            if self.failed is not None:
+                candidates.append((self.fold_names(self.failed), self.prior))
+            if self.folds:
+                candidates.append(([], None))  # laid flat again?
+            best, last_err = None, None
+            for names, prior in candidates:
+                try:
+                    est = estimate_keypoints(pts, folds=names, prior=prior, config=self.config)
+                except PoorFitError as err:
+                    last_err = err
+                    continue
+                if best is None or est.residual < best[1].residual:
+                    best = (names, est)
+                if names == self.fold_names():
+                    break  # the expected state fits: done
+            if best is None:
+                raise last_err
+        except PoorFitError as err:
+            self.errors += 1
+            self.get_logger().error(f"keypoint fit rejected ({self.errors} so far): {err}; keeping the last good "
+                                    "keypoints")
+            self.outline_pub.publish(self.outline_marker(err.estimate.segments, stamp, rejected=True))
+            return
+        except (PerceptionError, ValueError) as err:
+            self.errors += 1
+            self.get_logger().error(f"bad cloud skipped ({self.errors} so far): {type(err).__name__}: {err}; "
+                                    "keeping the last good keypoints")
+            return
+        names, est = best
+        if names != self.fold_names():
+            self.get_logger().warn(f"the cloud fits folds {names} better than the expected {self.fold_names()}: "
+                                   "taking that as the cloth's state")
+            self.folds = (self.folds + [self.failed]) if len(names) > len(self.folds) else []
+        self.failed = None
+        self.prior = est
+        self.pub.publish(rc.keypoints_to_msg(est.keypoints, stamp))
+        self.outline_pub.publish(self.outline_marker(est.segments, stamp))
+        self.count += 1
+        if self.count == 1 or self.count % 20 == 0:
+            self.get_logger().info(f"keypoints from {est.n_points} cloud points, folds {names}: residual "
+                                   f"{est.residual * 1e3:.1f} mm, {est.seconds * 1e3:.0f} ms CPU ({self.count} so far)")
+
+    def outline_marker(self, segments: np.ndarray, stamp: int, rejected: bool = False) -> Marker:
+        """LINE_LIST of the fitted model outline (segments (S, 2, 2) m, table frame) at z = 1 cm."""
+        m = Marker(header=rc.header(stamp), ns="rejected" if rejected else "fitted", id=0, type=Marker.LINE_LIST,
+                   action=Marker.ADD,
+                   color=ColorRGBA(r=1.0, g=0.1, b=0.1, a=1.0) if rejected else ColorRGBA(r=0.1, g=0.9, b=0.2, a=1.0))
+        m.pose.orientation.w = 1.0
+        m.scale.x = 0.003
+        m.points = [Point(x=float(x), y=float(y), z=0.01) for x, y in np.asarray(segments).reshape(-1, 2).tolist()]
+        return m
+
+    # -- source = cloth_state --------------------------------------------------------------------------
+    def garment(self, n_vertices: int):
+        from ..garment import make_shirt
+
+        if self._garment is None:
+            self._garment = make_shirt(params.value(self, "shape"), max_area=params.value(self, "max_area"))
+        if len(self._garment.vertices) != n_vertices:
+            raise ValueError(f"cloth state has {n_vertices} vertices but the flat shirt of shape "
+                             f"{params.value(self, 'shape')}, max_area {params.value(self, 'max_area')} has "
+                             f"{len(self._garment.vertices)}: set keypoint_node's shape and max_area like the sim's")
+        return self._garment
+
     def publish_model(self) -> None:
         kp, ids = self.model
         self.pub.publish(rc.keypoints_to_msg(kp, self.get_clock().now().nanoseconds, ids))
 
     def on_state(self, msg: ClothState) -> None:
+        from ..perception.visible import visible_keypoints
+
         try:
             state = rc.cloth_state_from_msg(msg)
             if not state.keypoint_ids:
                 raise ValueError("cloth state names no keypoint vertices")
+            ids = dict(state.keypoint_ids)
             kp = state.keypoints()
+            if self.folding(state.stamp_ns):
+                self.skipped = (self.on_state, msg)  # mid-fold: handled after the fold's result
+                return
+            if self.folds:
+                kp = visible_keypoints(self.garment(len(state.vertices)), state.vertices, self.folds)
+                ids = {n: (i if np.array_equal(kp[n], state.vertices[i]) else -1) for n, i in ids.items()}
             if not all(np.all(np.isfinite(p)) for p in kp.values()):
                 raise ValueError("keypoints are not finite")
         except ValueError as err:
             self.errors += 1
             self.get_logger().error(f"bad cloth state skipped ({self.errors} so far): {err}")
             return
-        self.pub.publish(rc.keypoints_to_msg(kp, state.stamp_ns, state.keypoint_ids))
+        self.pub.publish(rc.keypoints_to_msg(kp, state.stamp_ns, ids))
         self.count += 1
 
 

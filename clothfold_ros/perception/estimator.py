@@ -7,7 +7,7 @@ clouds first). Steps:
    table; refuse empty / mostly invalid clouds, no cloth, several cloth blobs;
 2. top view: rasterise the cloth points (pixel `pixel` m), close small holes, take the
    largest connected component and its outline (OpenCV), and the distance to the mask;
-3. fit the parametric shirt (9 shape parameters + scale, SPEC section 1) with a planar
+3. fit the parametric shirt (9 shape parameters + scale, docs/method.md section 1) with a planar
    pose (x, y, yaw) and, for a partly folded shirt, the folds done so far (each fold line
    fitted: angle and offset about the line planned from the model's own keypoints) by
    scipy.optimize.least_squares. Residuals: every observed outline point's distance to
@@ -36,7 +36,7 @@ from ..garment import KEYPOINT_NAMES, SHAPES, ShirtShape, _outline_unit
 from .visible import FoldLine, ideal_visible_keypoints
 
 SHAPE_FIELDS = tuple(f.name for f in fields(ShirtShape))  # 9 parameters + scale
-# fit bounds (shirt-height units, deg, m): SPEC section 1's plausible ranges, widened a little
+# fit bounds (shirt-height units, deg, m): docs/method.md section 1 plausible ranges, widened a little
 SHAPE_BOUNDS = {
     "bottom_width": (0.55, 0.80), "neck_width": (0.15, 0.45), "neck_depth": (0.0, 0.25),
     "shoulder_width": (0.38, 0.82), "shoulder_height": (0.80, 0.99), "sleeve_width_start": (0.20, 0.36),

@@ -1,0 +1,193 @@
+"""keypoint_node as its own process, fed point clouds and cloth states (isolated ROS domain,
+localhost discovery): good, noisy and broken clouds, a camera frame, folds learnt from
+/fold/active + /fold/result, folded-state keypoints from the cloth state."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from clothfold_msgs.msg import FoldResult, FoldSpec as FoldSpecMsg
+from sensor_msgs.msg import PointCloud2
+from visualization_msgs.msg import Marker
+
+from clothfold_ros import ros_conversions as rc
+from clothfold_ros.folding import fold_spec
+from clothfold_ros.garment import KEYPOINT_NAMES, make_shirt
+from clothfold_ros.launcher import Launcher, node_command
+from clothfold_ros.loss import fold_target
+from clothfold_ros.nodes import common
+from clothfold_ros.nodes.keypoint_node import OUTLINE_TOPIC, cloud_from_msg
+from clothfold_ros.perception.camera import DepthCamera
+from clothfold_ros.perception.visible import visible_keypoints
+
+DOMAIN_POINTS = 171
+DOMAIN_CAMERA = 172
+DOMAIN_STATE = 173
+T = 3e-4
+S = 1_000_000_000
+
+
+@pytest.fixture
+def env(monkeypatch):
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    return monkeypatch
+
+
+class Feeder:
+    """PipelineClient plus publishers of clouds and fold announcements, and the outline marker."""
+
+    def __init__(self, name: str):
+        from clothfold_ros.nodes.pipeline_client import PipelineClient
+
+        self.client = PipelineClient(name)
+        node = self.client.node
+        self.cloud_pub = node.create_publisher(PointCloud2, common.CLOTH_POINTS, common.LATCHED)
+        self.active_pub = node.create_publisher(FoldSpecMsg, common.FOLD_ACTIVE, common.LATCHED)
+        self.result_pub = node.create_publisher(FoldResult, common.FOLD_RESULT, common.RESULTS)
+        self.markers: list[Marker] = []
+        node.create_subscription(Marker, OUTLINE_TOPIC, self.markers.append, common.LATCHED)
+
+    def cloud(self, pts: np.ndarray, stamp_ns: int, frame: str = "table") -> None:
+        self.cloud_pub.publish(rc.mesh_points(pts, stamp_ns, frame))
+
+    def fold(self, spec, t0_ns: int, success: bool = True) -> None:
+        self.active_pub.publish(rc.fold_spec_to_msg(rc.PlannedFold(spec, 0.5, 30.0, 4.0, 0.2, 0, t0_ns)))
+        time.sleep(0.5)
+        self.result_pub.publish(FoldResult(header=rc.header(t0_ns + 5 * S), fold_name=spec.name, success=success,
+                                           loss=0.005))
+
+    def keypoints(self, newer_than_ns: int, timeout: float = 60.0):
+        return rc.keypoints_from_msg(self.client.wait_keypoints(timeout, newer_than_ns=newer_than_ns))
+
+    def close(self):
+        self.client.close()
+
+
+def err_mm(kp: dict, truth: dict) -> np.ndarray:
+    return np.array([np.linalg.norm((kp[n] - truth[n])[:2]) for n in KEYPOINT_NAMES]) * 1e3
+
+
+def test_points_good_bad_and_folded_clouds(env):
+    env.setenv("ROS_DOMAIN_ID", str(DOMAIN_POINTS))
+    g = make_shirt(1, max_area=5e-4)
+    cam = DepthCamera()
+    with Launcher(domain_id=DOMAIN_POINTS, echo=False) as launcher:
+        node = launcher.start("keypoint_node", node_command(
+            "keypoint_node", params={"source": "points", "use_sim_time": False}))
+        launcher.wait_for(node, "estimated from the point cloud", 60)
+        feed = Feeder("test_perception_node")
+        try:
+            feed.cloud(cam.cloud(g.vertices, g.triangles, rng=0), 1 * S)
+            kp, ids = feed.keypoints(0)
+            assert np.median(err_mm(kp, g.keypoints())) < 10.0
+            assert set(ids.values()) == {-1}
+            launcher.wait_for(node, "residual", 20)
+            # broken clouds: logged with the reason, the last good keypoints stay
+            feed.cloud(np.zeros((0, 3)), 2 * S)
+            launcher.wait_for(node, "BadCloudError: cloud is empty", 20)
+            feed.cloud(np.full((2000, 3), np.nan), 3 * S)
+            launcher.wait_for(node, "are NaN", 20)
+            good = cam.cloud(g.vertices, g.triangles, rng=1)
+            feed.cloud(np.vstack([good, good + [1.8, 0.0, 0.0]]), 4 * S)
+            launcher.wait_for(node, "MultipleBlobsError", 40)
+            rng = np.random.default_rng(0)
+            r, a = 0.35 * np.sqrt(rng.random(20000)), rng.uniform(0, 2 * np.pi, 20000)
+            feed.cloud(np.column_stack([r * np.cos(a), r * np.sin(a), np.full(20000, 1e-3)]), 5 * S)
+            launcher.wait_for(node, "keypoint fit rejected", 40)
+            launcher.wait_for(node, "exceeds max_residual", 5)
+            feed.cloud(good, 6 * S, frame="camera")
+            launcher.wait_for(node, "points_frame", 20)
+            deadline = time.monotonic() + 20
+            while not any(m.ns == "rejected" for m in feed.markers) and time.monotonic() < deadline:
+                time.sleep(0.1)
+            assert any(m.ns == "rejected" for m in feed.markers)
+            assert any(m.ns == "fitted" and m.type == Marker.LINE_LIST and len(m.points) > 100 for m in feed.markers)
+            assert rc.time_to_ns(feed.client.keypoints.header.stamp) == 1 * S  # nothing bad was published
+            # a fold: clouds while it runs are not used; after its result the folded state is fitted
+            spec = fold_spec("left_sleeve", g.keypoints())
+            v = fold_target(g.vertices, spec, T)
+            feed.active_pub.publish(rc.fold_spec_to_msg(rc.PlannedFold(spec, 0.5, 30.0, 4.0, 0.2, 0, 10 * S)))
+            time.sleep(0.5)
+            feed.cloud(cam.cloud(v, g.triangles, rng=2), 12 * S)  # during the fold: kept for later
+            time.sleep(1.0)
+            assert rc.time_to_ns(feed.client.keypoints.header.stamp) == 1 * S
+            feed.result_pub.publish(FoldResult(header=rc.header(15 * S), fold_name="left_sleeve", success=True))
+            kp, _ = feed.keypoints(1 * S)  # the cloud taken during the fold, handled after the result
+            launcher.wait_for(node, "fold left_sleeve done", 20)
+            truth = visible_keypoints(g, v, [spec])
+            assert np.median(err_mm(kp, truth)) < 10.0
+            assert np.linalg.norm((kp["sleeve_top_left"] - truth["sleeve_top_left"])[:2]) < 0.02
+            launcher.check_alive()
+        finally:
+            feed.close()
+
+
+def test_points_in_a_camera_frame(env):
+    """A camera 1 m above the table looking down (x kept, y and z flipped), its fixed transform a parameter."""
+    env.setenv("ROS_DOMAIN_ID", str(DOMAIN_CAMERA))
+    g = make_shirt(2, max_area=5e-4)
+    t = np.array([0.1, -0.05, 1.0])
+    table = DepthCamera().cloud(g.vertices, g.triangles, rng=3)
+    in_camera = (table - t) * [1.0, -1.0, -1.0]  # R = 180 deg about x: R^T (p - t)
+    with Launcher(domain_id=DOMAIN_CAMERA, echo=False) as launcher:
+        node = launcher.start("keypoint_node", node_command(
+            "keypoint_node", params={"source": "points", "use_sim_time": False, "points_frame": "camera",
+                                     "table_from_camera": [*t.tolist(), 1.0, 0.0, 0.0, 0.0]}))
+        launcher.wait_for(node, "estimated from the point cloud", 60)
+        feed = Feeder("test_perception_camera")
+        try:
+            feed.cloud(in_camera, 1 * S, frame="camera")
+            kp, _ = feed.keypoints(0)
+            assert np.median(err_mm(kp, g.keypoints())) < 10.0
+            assert all(abs(p[2]) < 0.01 for p in kp.values())  # on the table, not 1 m away
+        finally:
+            feed.close()
+
+
+def test_cloth_state_source_reports_visible_keypoints(env):
+    env.setenv("ROS_DOMAIN_ID", str(DOMAIN_STATE))
+    g = make_shirt(1, max_area=2e-3)
+    with Launcher(domain_id=DOMAIN_STATE, echo=False) as launcher:
+        node = launcher.start("keypoint_node", node_command(
+            "keypoint_node", params={"source": "cloth_state", "use_sim_time": False, "max_area": 2e-3}))
+        launcher.wait_for(node, "publishing keypoints of the cloth", 60)
+        feed = Feeder("test_perception_state")
+        try:
+            sides = []
+            v = g.vertices.copy()
+            for k, name in enumerate(("left_sleeve", "right_sleeve", "left_side", "right_side")):
+                spec = fold_spec(name, visible_keypoints(g, v, sides), folds_done=[s.name for s in sides])
+                feed.fold(spec, (10 * k + 10) * S)
+                launcher.wait_for(node, f"fold {name} done", 20)
+                sides.append(spec)
+                v = fold_target(v, spec, T)
+            stamp = 100 * S
+            feed.client.state_pub.publish(rc.cloth_state_to_msg(v, g.triangles, g.keypoint_ids, T, stamp))
+            kp, ids = feed.keypoints(stamp - 1)
+            truth = visible_keypoints(g, v, sides)
+            for n in KEYPOINT_NAMES:
+                np.testing.assert_allclose(kp[n], truth[n], atol=1e-6)  # float32 positions in the message
+            w = g.shape.bottom_width * g.shape.scale
+            assert kp["bottom_left"][0] == pytest.approx(-w / 4, abs=1e-6)  # the folded outline's corner
+            assert ids["bottom_left"] == -1 and ids["neck_middle"] == g.keypoint_ids["neck_middle"]
+            # the planner can now plan the middle fold where the study grasped
+            mid = fold_spec("middle", kp, folds_done=[s.name for s in sides])
+            for a, b in zip(mid.start_poses, fold_spec("middle", g.keypoints()).start_poses):
+                np.testing.assert_allclose(a.position[:2], b.position[:2], atol=1e-5)
+            launcher.check_alive()
+        finally:
+            feed.close()
+
+
+def test_cloud_from_msg_round_trip_and_errors():
+    pts = np.random.default_rng(0).normal(size=(50, 3))
+    np.testing.assert_allclose(cloud_from_msg(rc.mesh_points(pts, 0)), pts.astype(np.float32))
+    m = rc.mesh_points(pts, 0)
+    m.fields = m.fields[:2]
+    with pytest.raises(ValueError, match="no field"):
+        cloud_from_msg(m)
+    m = rc.mesh_points(pts, 0)
+    m.data = m.data[:100]
+    with pytest.raises(ValueError, match="bytes"):
+        cloud_from_msg(m)
