@@ -5,7 +5,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from clothfold_ros.sim import bending, membrane
-from clothfold_ros.sim.assembly import UpperPattern, element_dofs, scatter_gradient
+from clothfold_ros.sim.linear_solver import spd_solver
+from clothfold_ros.sim.pattern import HessianPattern, element_dofs, scatter_gradient
 from sim_helpers import rectangle
 
 EPS = 1e-6
@@ -62,12 +63,50 @@ def test_flat_mesh_hinges_are_flat_and_interior():
     assert np.allclose(bending.dihedral_angles(v, h), 0.0)
 
 
-def test_upper_pattern_assembles_the_dense_sum():
+def _fd_hessian(x, tri, b, vol, lam, mu):
+    fd = np.zeros((9, 9))
+    for i in range(9):
+        xp, xm = x.copy(), x.copy()
+        xp.flat[i] += EPS
+        xm.flat[i] -= EPS
+        gp = membrane.membrane_derivatives(xp, tri, b, vol, lam, mu, membrane.PROJECT_NONE)[1][0]
+        gm = membrane.membrane_derivatives(xm, tri, b, vol, lam, mu, membrane.PROJECT_NONE)[1][0]
+        fd[:, i] = (gp - gm) / (2 * EPS)
+    return fd
+
+
+def test_membrane_closed_form_eigensystem_is_the_exact_hessian_in_compression():
+    """The analytic eigensystem reproduces the exact Hessian (indefinite states included)
+    and its projections are PSD and keep the non-negative part of the spectrum."""
+    rest = np.array([[0, 0, 0], [1, 0, 0], [0.2, 0.9, 0.0]])
+    tri = np.array([[0, 1, 2]])
+    b, area = membrane.rest_shape(rest, tri)
+    vol = area * 0.01
+    rng = np.random.default_rng(3)
+    indefinite = 0
+    for _ in range(60):
+        x = rest * rng.uniform(0.6, 1.1) + rng.normal(0, 0.15, (3, 3))
+        e, _, h = membrane.membrane_derivatives(x, tri, b, vol, 2.0, 3.0, membrane.PROJECT_NONE)
+        if not np.isfinite(e):
+            continue
+        fd = _fd_hessian(x, tri, b, vol, 2.0, 3.0)
+        assert np.allclose(h[0], fd, atol=1e-6 * np.abs(fd).max())
+        w = np.linalg.eigvalsh(fd)
+        indefinite += w.min() < -1e-6 * np.abs(w).max()
+        for method in (membrane.PROJECT_CLAMP, membrane.PROJECT_ABS):
+            hp = membrane.membrane_derivatives(x, tri, b, vol, 2.0, 3.0, method)[2][0]
+            wp = np.linalg.eigvalsh(hp)
+            assert wp.min() > -1e-9 * np.abs(wp).max()
+            assert wp.max() >= w.max() * (1 - 1e-6)
+    assert indefinite > 10  # the check covered compressed (indefinite) states
+
+
+def test_hessian_pattern_assembles_the_dense_sum_and_grows_for_contacts():
     v, f = rectangle(0.05, 0.05, 5e-4, 0.0)
     n = 3 * len(v)
     h = bending.hinges(f)
     blocks = [element_dofs(f), element_dofs(h)]
-    pat = UpperPattern(n, blocks)
+    pat = HessianPattern(n, blocks)
     rng = np.random.default_rng(0)
     he = rng.normal(size=(len(f), 9, 9))
     he = he + he.transpose(0, 2, 1)
@@ -77,12 +116,45 @@ def test_upper_pattern_assembles_the_dense_sum():
     dense = np.diag(diag)
     for dofs, hs in zip(blocks, (he, hh)):
         for d, m in zip(dofs, hs):
-            dense[np.ix_(d, d)] += m
-    upper = pat.assemble([he, hh], diag).toarray()
+            dense[np.ix_(d, d)] += 0.5 * m
+    upper = pat.matrix(pat.assemble([he, hh], 0.5, diag)).toarray()
     assert np.allclose(upper, np.triu(dense))
+    # a contact between two far-apart vertices is outside the elastic pattern: it grows
+    a, c = 0, len(v) - 1
+    dofs = np.r_[3 * a : 3 * a + 3, 3 * c : 3 * c + 3]
+    block = rng.normal(size=(6, 6))
+    block = block @ block.T
+    hc = np.zeros((n, n))
+    hc[np.ix_(dofs, dofs)] = block
+    version, nnz = pat.version, pat.nnz
+    slots, vals, grew = pat.contact_slots(sp.csc_matrix(hc))
+    assert grew and pat.version == version + 1 and pat.nnz > nnz
+    full = pat.matrix(pat.assemble([he, hh], 0.5, diag, (slots, vals))).toarray()
+    assert np.allclose(full, np.triu(dense + hc))
+    # the same contact again: no growth, same pattern
+    assert not pat.contact_slots(sp.csc_matrix(hc))[2]
     g = rng.normal(size=(len(f), 9))
     ref = np.zeros(n)
     for d, gi in zip(blocks[0], g):
         ref[d] += gi
     assert np.allclose(scatter_gradient(n, blocks[0], g), ref)
-    assert sp.issparse(pat.assemble([he, hh], diag))
+
+
+def test_spd_solvers_solve_on_the_persistent_pattern():
+    v, f = rectangle(0.05, 0.05, 5e-4, 0.0)
+    n = 3 * len(v)
+    pat = HessianPattern(n, [element_dofs(f)])
+    rng = np.random.default_rng(1)
+    he = rng.normal(size=(len(f), 9, 9))
+    he = np.einsum("eij,ekj->eik", he, he)  # PSD blocks
+    rhs = rng.normal(size=n)
+    for backend in ("pardiso", "superlu"):
+        solver = spd_solver(backend)
+        solver.set_pattern(pat.indptr, pat.indices)
+        for scale in (1.0, 2.0):  # refactor on the same pattern: analysed once
+            data = pat.assemble([he], scale, np.ones(n))
+            solver.factor(data)
+            upper = pat.matrix(data)
+            full = (upper + sp.triu(upper, k=1).T).toarray()
+            assert np.allclose(full @ solver.solve(rhs), rhs, atol=1e-9)
+        assert solver.analyses == (1 if backend == "pardiso" else 2)

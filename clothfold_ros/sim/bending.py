@@ -105,3 +105,24 @@ def bending_derivatives(x, h, theta_rest, weight, k, want_hess):
 def dihedral_angles(x: np.ndarray, h: np.ndarray) -> np.ndarray:
     """Signed dihedral angles (rad) of hinges h at positions x."""
     return _angles_and_weights(x, h)[0]
+
+
+@nb.njit(cache=True, parallel=True)
+def bending_energy(x, h, theta_rest, weight, k):
+    """Total bending energy (J)."""
+    n = h.shape[0]
+    energies = np.empty(n)
+    for i in nb.prange(n):
+        x0, x1, x2, x3 = x[h[i, 0]], x[h[i, 1]], x[h[i, 2]], x[h[i, 3]]
+        e = x1 - x0
+        na = np.cross(e, x2 - x0)
+        nb_ = np.cross(x0 - x1, x3 - x1)
+        elen = np.sqrt(e @ e)
+        theta = np.arctan2((np.cross(na, nb_) @ e) / elen, na @ nb_)
+        d = theta - theta_rest[i]
+        if d > np.pi:
+            d -= 2.0 * np.pi
+        elif d < -np.pi:
+            d += 2.0 * np.pi
+        energies[i] = k * weight[i] * d * d
+    return energies.sum()

@@ -18,9 +18,11 @@ class SimConfig:
     newton_window: int = 1  # ... over this many last iterations
     max_newton_iterations: int = 80
     max_line_search_halvings: int = 30
-    max_bc_stages: int = 6  # spring rounds per step when CCD blocks the straight gripper move
-    grasp_spring: float = 1e4  # 1/s^2 x mass: first spring stiffness pulling grasped cloth
-    grasp_tolerance: float = 1e-4  # m: grasped cloth may end a step this far from its target
+    grasp_stiffness: float = 6e7  # N/m per kg of held cloth (1/s^2): spring from cloth to grip point
+    grasp_slip: float = 2e-3  # m: held cloth farther than this from its grip point slips in the grip
+    psd_projection: str = "clamp"  # "clamp", "abs" (negative membrane eigenvalues set to 0 or |.|) or "adaptive"
+    trust_ratio: float = 0.01  # adaptive: |.| after an iteration whose actual/predicted decrease was below this
+    linear_solver: str = "auto"  # "pardiso", "superlu" or "auto" (PARDISO when MKL is there)
     xi: float | None = None  # m, minimum mid-surface separation (offset)
     dhat: float | None = None  # m, barrier activation distance beyond xi
     eps_v: float = 1e-3  # m/s, smoothed static friction velocity

@@ -46,6 +46,7 @@ class ContactModel:
         self.bbox_diagonal = float(ipctk.world_bbox_diagonal_length(np.asfortranarray(rest)))
         self.collisions = ipctk.NormalCollisions()
         self.tangential = ipctk.TangentialCollisions()
+        self.psd = PSD  # projection of the barrier and friction Hessians
 
     # -- collision sets --------------------------------------------------------------
     def build(self, x: np.ndarray, candidates: ipctk.Candidates | None = None) -> ipctk.NormalCollisions:
@@ -115,9 +116,9 @@ class ContactModel:
     def hessian(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> sp.spmatrix | None:
         h = None
         if len(col):
-            h = self.barrier.hessian(col, self.mesh, np.asfortranarray(x), PSD)
+            h = self.barrier.hessian(col, self.mesh, np.asfortranarray(x), self.psd)
         if len(self.tangential):
-            hf = self.friction.hessian(self.tangential, self.mesh, np.asfortranarray(u), PSD)
+            hf = self.friction.hessian(self.tangential, self.mesh, np.asfortranarray(u), self.psd)
             h = hf if h is None else h + hf
         return h
 

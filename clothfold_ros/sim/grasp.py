@@ -1,8 +1,14 @@
-"""Gripper grasp box (SPEC section 4) and rigid attachment of grasped cloth.
+"""Gripper grasp box (method section "Grasp") and the grasp springs that hold the cloth.
 
 The box is centred on the gripper pose: 5 cm along the gripper x axis (world up), 12 cm
 along y (across the approach) and 5 cm along z (the approach direction). Every triangle
-with a vertex in the box is grasped with all three of its vertices.
+with a vertex in the box is grasped with all three of its vertices, through every layer
+of a stack (what a gripper sliding under the cloth from the side holds).
+
+Held vertices are attached to grip points fixed in the gripper frame by stiff springs
+(see ClothSimulator.step), not pinned: where the gripper motion would force held cloth
+into other cloth or the table, contact wins and the held cloth lags; cloth that lags
+more than the slip distance slips in the grip (its grip point moves to where it is).
 """
 from __future__ import annotations
 
@@ -17,14 +23,20 @@ GRASP_BOX = np.array([0.05, 0.12, 0.05])  # m, extent along gripper x, y, z
 
 @dataclass(frozen=True)
 class Grasp:
-    """Vertices held by one gripper and their fixed coordinates in the gripper frame."""
+    """Vertices held by one gripper and their grip points in the gripper frame."""
 
     vertex_ids: np.ndarray  # (K,) int
     local: np.ndarray  # (K, 3) m, gripper frame
 
     def targets(self, pose: Pose) -> np.ndarray:
-        """Positions (K, 3) of the grasped vertices for a gripper at `pose`."""
+        """Grip points (K, 3), table frame, for a gripper at `pose`."""
         return pose.transform_points(self.local)
+
+    def slipped(self, pose: Pose, x: np.ndarray, mask: np.ndarray) -> "Grasp":
+        """The grasp after the vertices `mask` (K,) slipped to their positions x (N, 3)."""
+        local = self.local.copy()
+        local[mask] = (x[self.vertex_ids[mask]] - pose.position) @ pose.matrix
+        return Grasp(self.vertex_ids, local)
 
 
 def grasp(x: np.ndarray, triangles: np.ndarray, pose: Pose, box: np.ndarray = GRASP_BOX) -> Grasp:

@@ -1,48 +1,140 @@
-"""Sparse symmetric positive-definite solves for Newton: MKL Pardiso, SciPy fallback."""
+"""Sparse SPD solves for Newton on a persistent pattern: MKL PARDISO phases, SciPy fallback.
+
+The Newton matrix keeps one upper-triangular CSR pattern across iterations (see
+`pattern.HessianPattern`); only its values change. PARDISO then runs the symbolic
+analysis (reordering, phase 11) once per pattern and only the numeric factorization
+(phase 22) and the solve (phase 33) per Newton iteration. Indices are zero-based
+(iparm[34] = 1) and the matrix type is real SPD (mtype 2), so nothing is copied.
+
+PARDISO runs on one MKL thread (thread-local setting): a threaded factorization sums in
+a run-dependent order and the simulator promises bit-for-bit reproducible results.
+"""
 from __future__ import annotations
+
+import ctypes
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-try:  # MKL Pardiso (pypardiso) in SPD mode on the upper triangle: the fastest here.
+try:  # MKL PARDISO through the library handle pypardiso loads (pypardiso finds mkl_rt).
     import pypardiso
 
     _HAVE_PARDISO = True
 except ImportError:  # pragma: no cover - exercised only where MKL is missing
     _HAVE_PARDISO = False
 
+_I32P = ctypes.POINTER(ctypes.c_int32)
+_F64P = ctypes.POINTER(ctypes.c_double)
+_MTYPE_SPD = 2
 
-class SPDSolver:
-    """Solve H p = r with H symmetric positive definite, given its upper triangle (CSR)."""
 
-    def __init__(self, backend: str = "auto") -> None:
-        if backend == "auto":
-            backend = "pardiso" if _HAVE_PARDISO else "superlu"
-        if backend == "pardiso" and not _HAVE_PARDISO:
-            raise ValueError("pypardiso is not installed; use backend='superlu'")
-        self.backend = backend
-        if backend == "pardiso":
-            self._pardiso = pypardiso.PyPardisoSolver(mtype=2)
-            self._n = -1
+class PardisoSPD:
+    """PARDISO for one SPD system whose pattern changes rarely and whose values change often.
 
-    def solve(self, upper: sp.csr_matrix, rhs: np.ndarray) -> np.ndarray:
-        if self.backend == "pardiso":
-            a = sp.csr_matrix(upper)
-            a.sort_indices()
-            if a.shape[0] != self._n:  # new system size: drop the old factorization
-                self._pardiso.free_memory(everything=True)
-                self._n = a.shape[0]
-            # One MKL thread for this call: a threaded factorization sums in a run-dependent
-            # order, which made folds of ~3K triangles differ from run to run (the simulator
-            # promises bit-for-bit determinism). Thread-local, so nothing else is affected.
-            previous = self._pardiso.libmkl.MKL_Set_Num_Threads_Local(1)
-            try:
-                x = self._pardiso.solve(a, rhs)
-            except pypardiso.pardiso_wrapper.PyPardisoError as err:
-                raise np.linalg.LinAlgError(f"Pardiso failed: {err}") from err
-            finally:
-                self._pardiso.libmkl.MKL_Set_Num_Threads_Local(previous)
-            return np.asarray(x).ravel()
-        full = upper + sp.triu(upper, k=1).T
-        return spla.spsolve(full.tocsc(), rhs)
+    `set_pattern(indptr, indices)` (upper triangle, sorted, int32) schedules an analysis;
+    `factor(data)` factorizes the values on that pattern; `solve(rhs)` solves with it.
+    """
+
+    def __init__(self) -> None:
+        if not _HAVE_PARDISO:
+            raise ImportError("pypardiso (MKL) is not installed")
+        self._lib = pypardiso.PyPardisoSolver(mtype=_MTYPE_SPD)  # owns the mkl_rt handle
+        self._mkl = self._lib.libmkl
+        self._pardiso = self._lib._mkl_pardiso  # argtypes already declared by pypardiso
+        self._pt = np.zeros(64, dtype=np.int64)
+        self._iparm = np.zeros(64, dtype=np.int32)
+        self._mkl.pardisoinit(self._pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
+                              ctypes.byref(ctypes.c_int32(_MTYPE_SPD)), self._iparm.ctypes.data_as(_I32P))
+        self._iparm[0] = 1  # use the iparm values below, not the defaults
+        self._iparm[1] = 2  # nested dissection (METIS) ordering
+        self._iparm[34] = 1  # zero-based indices
+        self._perm = np.zeros(0, dtype=np.int32)
+        self._n = 0
+        self._indptr = self._indices = None
+        self._data = None
+        self._analysed = False
+        self.analyses = 0  # symbolic analyses run (for statistics)
+
+    def set_pattern(self, indptr: np.ndarray, indices: np.ndarray) -> None:
+        self.free()
+        self._indptr = np.ascontiguousarray(indptr, dtype=np.int32)
+        self._indices = np.ascontiguousarray(indices, dtype=np.int32)
+        self._n = len(self._indptr) - 1
+        self._analysed = False
+
+    def _call(self, phase: int, data: np.ndarray, rhs: np.ndarray | None = None) -> np.ndarray | None:
+        b = np.zeros(self._n) if rhs is None else np.ascontiguousarray(rhs, dtype=float)
+        x = np.zeros(self._n)
+        err = ctypes.c_int32(0)
+        previous = self._mkl.MKL_Set_Num_Threads_Local(1)
+        try:
+            self._pardiso(
+                self._pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(ctypes.c_int32(1)),
+                ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(_MTYPE_SPD)),
+                ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(self._n)),
+                data.ctypes.data_as(_F64P), self._indptr.ctypes.data_as(_I32P), self._indices.ctypes.data_as(_I32P),
+                self._perm.ctypes.data_as(_I32P), ctypes.byref(ctypes.c_int32(1)), self._iparm.ctypes.data_as(_I32P),
+                ctypes.byref(ctypes.c_int32(0)), b.ctypes.data_as(_F64P), x.ctypes.data_as(_F64P), ctypes.byref(err),
+            )
+        finally:
+            self._mkl.MKL_Set_Num_Threads_Local(previous)
+        if err.value != 0:
+            hint = " (matrix not positive definite)" if err.value == -4 else ""
+            raise np.linalg.LinAlgError(f"PARDISO phase {phase} failed with error {err.value}{hint}")
+        return x if rhs is not None else None
+
+    def factor(self, data: np.ndarray) -> None:
+        self._data = np.ascontiguousarray(data, dtype=float)
+        if not self._analysed:
+            self._call(11, self._data)
+            self._analysed = True
+            self.analyses += 1
+        self._call(22, self._data)
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        return self._call(33, self._data, rhs)
+
+    def free(self) -> None:
+        if self._n and self._analysed:
+            self._call(-1, np.zeros(1))
+        self._analysed = False
+
+    def __del__(self) -> None:  # release PARDISO's internal memory
+        try:
+            self.free()
+        except Exception:  # noqa: BLE001 - interpreter shutdown
+            pass
+
+
+class ScipySPD:
+    """Fallback with the same interface: SuperLU on the full symmetric matrix (slow)."""
+
+    def __init__(self) -> None:
+        self._indptr = self._indices = None
+        self._lu = None
+        self.analyses = 0
+
+    def set_pattern(self, indptr: np.ndarray, indices: np.ndarray) -> None:
+        self._indptr, self._indices = indptr, indices
+
+    def factor(self, data: np.ndarray) -> None:
+        n = len(self._indptr) - 1
+        upper = sp.csr_matrix((data, self._indices, self._indptr), shape=(n, n))
+        full = (upper + sp.triu(upper, k=1).T).tocsc()
+        self._lu = spla.splu(full)
+        self.analyses += 1
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        return self._lu.solve(np.asarray(rhs, dtype=float))
+
+
+def spd_solver(backend: str = "auto") -> PardisoSPD | ScipySPD:
+    """The fastest SPD solver available ("auto"), or "pardiso" / "superlu" by name."""
+    if backend == "auto":
+        backend = "pardiso" if _HAVE_PARDISO else "superlu"
+    if backend == "pardiso":
+        return PardisoSPD()
+    if backend == "superlu":
+        return ScipySPD()
+    raise ValueError(f"unknown linear solver {backend!r} (pardiso, superlu, auto)")

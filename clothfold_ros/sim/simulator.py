@@ -1,7 +1,10 @@
 """The IPC cloth simulator: implicit Euler, projected Newton, CCD-bounded line search.
 
-One `step` advances the cloth by dt with the grasped vertices following their grippers'
-poses at the end of the step (hard constraints). Every accepted step is checked
+One `step` advances the cloth by dt, with the grasped cloth pulled by stiff springs to
+grip points that follow the grippers' poses at the end of the step (grasp.py). Every
+step is one Newton solve of the incremental potential over all vertices, on a Hessian
+pattern that persists across iterations (pattern.py) so the sparse factorization only
+re-analyses when a new contact pair appears. Every accepted step is checked
 intersection-free; a step that cannot be solved raises `SimulationFailure` and leaves
 the state of the last good step untouched. Units: SI, table frame (z up, table z = 0).
 """
@@ -17,11 +20,11 @@ import scipy.sparse as sp
 from ..materials import Material
 from ..pose import Pose
 from . import bending, membrane
-from .assembly import UpperPattern, element_dofs, scatter_gradient
 from .config import SimConfig
 from .contact import ContactModel
 from .grasp import Grasp, grasp
-from .linear_solver import SPDSolver
+from .linear_solver import spd_solver
+from .pattern import HessianPattern, element_dofs, scatter_gradient
 
 
 class SimulationFailure(RuntimeError):
@@ -44,6 +47,9 @@ class StepStats:
     kappa: float
     residual: float  # m/s, RMS(|dx|)/dt of the last Newton direction
     wall_time: float  # s
+    grasp_lag: float = 0.0  # m, largest distance of held cloth from its grip point at the step's end
+    slipped: int = 0  # held vertices that slipped in the grip this step (lag > SimConfig.grasp_slip)
+    analyses: int = 0  # symbolic factorizations (new sparsity pattern) this step
     phases: dict[str, float] = field(default_factory=dict)  # s per phase
 
 
@@ -98,13 +104,17 @@ class ClothSimulator:
 
         self._tri_dofs = element_dofs(tri)
         self._hinge_dofs = element_dofs(self._hinges)
-        self._pattern = UpperPattern(self.ndof, [self._tri_dofs, self._hinge_dofs])
+        self._pattern = HessianPattern(self.ndof, [self._tri_dofs, self._hinge_dofs])
+        self._pattern_version = -1  # pattern version the solver has analysed
         xi = material.thickness if cfg.xi is None else cfg.xi
         dhat = material.thickness if cfg.dhat is None else cfg.dhat
         self.contact = ContactModel(rest, tri, xi, dhat, friction, cfg.eps_v, cfg.dt)
         self.grasps: dict[int, Grasp] = {}
-        self._solver = SPDSolver()
         import ipctk
+
+        self._solver = spd_solver(cfg.linear_solver)
+        self._project = membrane.PROJECT_ABS if cfg.psd_projection == "abs" else membrane.PROJECT_CLAMP  # adaptive: per iteration
+        self.contact.psd = ipctk.PSDProjectionMethod.ABS if cfg.psd_projection == "abs" else ipctk.PSDProjectionMethod.CLAMP
 
         ipctk.set_num_threads(cfg.threads)
         if self.contact.intersects(self.x):
@@ -132,35 +142,74 @@ class ClothSimulator:
         return np.unique(np.concatenate([g.vertex_ids for g in self.grasps.values()]))
 
     # -- energy -------------------------------------------------------------------------
-    def _elastic(self, x: np.ndarray, want_hess: bool):
-        if want_hess:
-            em, gm, hm = membrane.membrane_derivatives(x, self.triangles, self._shape, self._volume, self._lam, self._mu)
-        else:
-            em = membrane.membrane_energy(x, self.triangles, self._shape, self._volume, self._lam, self._mu)
-            gm = hm = None
+    def _elastic(self, x: np.ndarray, want_hess: bool = True):
+        """Elastic energy (J), per-element gradients and PSD Hessians (membrane, bending)."""
+        em, gm, hm = membrane.membrane_derivatives(x, self.triangles, self._shape, self._volume, self._lam,
+                                                   self._mu, self._project)
         eb, gb, hb = bending.bending_derivatives(
             x, self._hinges, self._theta_rest, self._hinge_weight, self._k_bend, want_hess
         )
         return em + eb, gm, hm, gb, hb
 
+    def _elastic_energy(self, x: np.ndarray) -> float:
+        return membrane.membrane_energy(x, self.triangles, self._shape, self._volume, self._lam, self._mu) + \
+            bending.bending_energy(x, self._hinges, self._theta_rest, self._hinge_weight, self._k_bend)
+
     def _energy(self, x, x_hat, x_prev, col, pull=None) -> float:
         h2 = self.dt**2
         d = (x - x_hat).ravel()
-        e_el = self._elastic(x, False)[0]
+        e_el = self._elastic_energy(x)
         e = 0.5 * d @ (self._mass_dof * d) + h2 * e_el + self.contact.energy(col, x, x - x_prev)
         if pull is not None:
             e += 0.5 * float(pull[0] @ np.sum((x - pull[1]) ** 2, axis=1))
         return e
 
     # -- stepping -------------------------------------------------------------------------
-    def step(self, gripper_poses: dict[int, Pose] | None = None) -> StepStats:
-        """Advance by dt; `gripper_poses` gives each closed gripper's pose at the step's end.
+    def _grip_points(self, poses: dict[int, Pose], x_prev: np.ndarray, when: str):
+        """Spring weights (N,) and grip points (N, 3) of the held cloth at the step's end.
 
-        Grasped vertices go straight to their targets when that move is collision-free;
-        otherwise they are pulled there by a stiff spring (all vertices free, so the
-        barrier pushes the cloth in the way aside) and then pinned (see _move_grasped).
+        A grip point whose rigid position lies below the held vertex's resting height
+        (xi + dhat above the table) is kept at that height: the start of a fold's rotation
+        about the fold line would otherwise swing the inner edge of the grasped patch into
+        the table before the gripper has risen.
         """
-        cfg = self.config
+        weight = np.zeros(len(x_prev))
+        anchor = x_prev.copy()
+        k = self.dt**2 * self.config.grasp_stiffness
+        for gid, g in self.grasps.items():
+            z = float(poses[gid].position[2])
+            if z < 0.0:
+                raise SimulationFailure(f"{when}: gripper {gid} commanded below the table top (z = {z * 1000:.1f} mm)")
+            anchor[g.vertex_ids] = g.targets(poses[gid])
+            weight[g.vertex_ids] = k * self.vertex_mass[g.vertex_ids]
+        held = weight > 0
+        if held.any():
+            floor = self.contact.xi + self.contact.dhat
+            anchor[held, 2] = np.maximum(anchor[held, 2], np.minimum(floor, x_prev[held, 2]))
+        return weight, anchor
+
+    def _warm_start(self, x_prev: np.ndarray, weight: np.ndarray, anchor: np.ndarray, phases) -> np.ndarray:
+        """Newton's first iterate: held cloth at its grip points, cut back by CCD to an
+        intersection-free fraction of that move; free cloth where it is. (Moving free cloth
+        on at its velocity was tried: it pushes cloth falling onto the table deep into the
+        barrier, where the lagged friction of the next step then glues it.)"""
+        guess = x_prev.copy()
+        held = weight > 0
+        guess[held] = anchor[held]
+        if np.array_equal(guess, x_prev):
+            return x_prev.copy()
+        tic = time.perf_counter()
+        alpha = min(1.0, self.contact.max_step(x_prev, guess))
+        phases["ccd"] += time.perf_counter() - tic
+        if alpha <= 0.0:
+            return x_prev.copy()
+        x = x_prev + alpha * (guess - x_prev)
+        if not self.contact.separated(self.contact.build(x), x):
+            return x_prev.copy()
+        return x
+
+    def step(self, gripper_poses: dict[int, Pose] | None = None) -> StepStats:
+        """Advance by dt; `gripper_poses` gives each closed gripper's pose at the step's end."""
         t_start = time.perf_counter()
         phases: dict[str, float] = defaultdict(float)
         poses = gripper_poses or {}
@@ -171,47 +220,27 @@ class ClothSimulator:
         when = f"t={self.time + h:.3f}s"
         x_prev = self.x.copy()
         x_hat = x_prev + h * self.v + h * h * self._gravity
-
-        fixed = self.grasped_vertex_ids()
-        free = np.ones(len(x_prev), dtype=bool)
-        free[fixed] = False
-        x = x_prev.copy()
-        bc = x_prev.copy()
-        for gid, g in self.grasps.items():
-            z = float(poses[gid].position[2])
-            if z < 0.0:
-                raise SimulationFailure(f"{when}: gripper {gid} commanded below the table top (z = {z * 1000:.1f} mm)")
-            bc[g.vertex_ids] = g.targets(poses[gid])
-        if fixed.size:
-            # The table stops grasped cloth too: a grasped vertex whose rigid target lies
-            # below its resting height (xi + dhat above the table) is held at that height.
-            # Without this, the start of a fold's rotation about the fold line swings the
-            # inner edge of the grasped patch into the table before the gripper has risen.
-            floor = self.contact.xi + self.contact.dhat
-            bc[fixed, 2] = np.maximum(bc[fixed, 2], np.minimum(floor, x_prev[fixed, 2]))
+        weight, anchor = self._grip_points(poses, x_prev, when)
+        pull = (weight, anchor) if self.grasps else None
 
         if self.contact.kappa == 0.0:
-            _, gm, _, gb, _ = self._elastic(x, True)
+            _, gm, _, gb, _ = self._elastic(x_prev, False)
             g_el = scatter_gradient(self.ndof, self._tri_dofs, gm) + scatter_gradient(self.ndof, self._hinge_dofs, gb)
-            g_e = self._mass_dof * (x - x_hat).ravel() + h * h * g_el
-            self.contact.init_kappa(x, g_e, float(self.vertex_mass.mean()))
+            g_e = self._mass_dof * (x_prev - x_hat).ravel() + h * h * g_el
+            self.contact.init_kappa(x_prev, g_e, float(self.vertex_mass.mean()))
         tic = time.perf_counter()
         self.contact.lag_friction(x_prev)
         phases["friction_lag"] += time.perf_counter() - tic
 
-        iterations = halvings = 0
-        if fixed.size:
-            x, it, hv = self._move_grasped(x, x_prev, x_hat, fixed, bc, phases, when)
-            iterations += it
-            halvings += hv
-        x, it, hv, residual, col = self._newton(x, x_prev, x_hat, free, phases, when)
-        iterations += it
-        halvings += hv
-        if cfg.check_intersections:
+        analyses0 = self._solver.analyses
+        x = self._warm_start(x_prev, weight, anchor, phases)
+        x, iterations, halvings, residual, col = self._newton(x, x_prev, x_hat, phases, when, pull)
+        if self.config.check_intersections:
             tic = time.perf_counter()
             if self.contact.intersects(x):
                 raise SimulationFailure(f"{when}: step ended with an intersection")
             phases["intersection_check"] += time.perf_counter() - tic
+        lag, slipped = self._slip(x, poses, anchor)
         self.v = (x - x_prev) / h
         self.x = x
         self.time += h
@@ -225,57 +254,40 @@ class ClothSimulator:
             residual=residual,
             wall_time=time.perf_counter() - t_start,
             phases=dict(phases),
+            grasp_lag=lag,
+            slipped=slipped,
+            analyses=self._solver.analyses - analyses0,
         )
 
-    def _move_grasped(self, x, x_prev, x_hat, fixed, bc, phases, when):
-        """Bring grasped vertices to their targets bc[fixed] without any intersection.
+    def _slip(self, x: np.ndarray, poses: dict[int, Pose], anchor: np.ndarray) -> tuple[float, int]:
+        """Largest held-cloth lag (m); vertices lagging beyond grasp_slip slip in the grip."""
+        lag_max, slipped = 0.0, 0
+        for gid, g in list(self.grasps.items()):
+            lag = np.linalg.norm(x[g.vertex_ids] - anchor[g.vertex_ids], axis=1)
+            lag_max = max(lag_max, float(lag.max()))
+            slip = lag > self.config.grasp_slip
+            if slip.any():
+                self.grasps[gid] = g.slipped(poses[gid], x, slip)
+                slipped += int(slip.sum())
+        return lag_max, slipped
 
-        The straight move is taken when CCD allows it. Otherwise a spring energy
-        k/2 sum m_i |x_i - bc_i|^2 on the grasped vertices (k raised 10x per round, the
-        penalty stage of an augmented-Lagrangian treatment of moving boundary conditions)
-        pulls them along while the whole cloth is solved, until the last gap can be
-        closed by a collision-free straight move or is below `grasp_tolerance` (the
-        augmented-Lagrangian convergence test). Returns (x, iterations, halvings).
-        """
-        cfg = self.config
-        iterations = halvings = 0
-        all_free = np.ones(len(x), dtype=bool)
-        k = cfg.grasp_spring
-        for _ in range(cfg.max_bc_stages + 1):
-            trial = x.copy()
-            trial[fixed] = bc[fixed]
-            tic = time.perf_counter()
-            alpha = self.contact.max_step(x, trial)
-            phases["ccd"] += time.perf_counter() - tic
-            if alpha >= 1.0 and self.contact.separated(self.contact.build(trial), trial):
-                return trial, iterations, halvings
-            if iterations and np.abs(x[fixed] - bc[fixed]).max() <= cfg.grasp_tolerance:
-                return x, iterations, halvings  # pinned within tolerance where the spring left it
-            weight = np.zeros(len(x))
-            weight[fixed] = k * self.vertex_mass[fixed]
-            x, it, hv, _, _ = self._newton(x, x_prev, x_hat, all_free, phases, when, pull=(weight, bc))
-            iterations += it
-            halvings += hv
-            k *= 10.0
-        gap = float(np.abs(x[fixed] - bc[fixed]).max())
-        raise SimulationFailure(
-            f"{when}: the gripper motion drives the cloth into itself or the table "
-            f"(grasped cloth stays {gap * 1000:.2f} mm from the gripper)"
-        )
+    def _newton(self, x, x_prev, x_hat, phases, when, pull=None):
+        """Projected Newton on all vertices; returns (x, iterations, halvings, residual, collisions).
 
-    def _newton(self, x, x_prev, x_hat, free, phases, when, pull=None):
-        """Projected Newton on the free vertices; returns (x, iterations, halvings, residual, collisions).
-
-        pull = (per-vertex spring weight (N,), anchor positions (N, 3)) adds the energy
-        1/2 sum w_i |x_i - anchor_i|^2.
+        pull = (per-vertex spring weight (N,), grip points (N, 3)) adds the grasp energy
+        1/2 sum w_i |x_i - grip_i|^2.
         """
         cfg = self.config
         h = self.dt
-        free_idx = np.nonzero(np.repeat(free, 3))[0]
+        h2 = h * h
         residuals: list[float] = []
         halvings = 0
         prev_min = np.inf
         col = None  # collisions at x, carried over from the line search
+        diag = self._mass_dof if pull is None else self._mass_dof + np.repeat(pull[0], 3)
+        adaptive = cfg.psd_projection == "adaptive"
+        if adaptive:
+            self._project = membrane.PROJECT_CLAMP
         for it in range(1, cfg.max_newton_iterations + 1):
             if col is None:
                 tic = time.perf_counter()
@@ -283,39 +295,39 @@ class ClothSimulator:
                 phases["collisions"] += time.perf_counter() - tic
             tic = time.perf_counter()
             u = x - x_prev
-            _, gm, hm, gb, hb = self._elastic(x, True)
+            _, gm, hm, gb, hb = self._elastic(x)
             phases["elastic"] += time.perf_counter() - tic
             tic = time.perf_counter()
             grad = self._mass_dof * (x - x_hat).ravel()
-            grad += h * h * (
+            grad += h2 * (
                 scatter_gradient(self.ndof, self._tri_dofs, gm) + scatter_gradient(self.ndof, self._hinge_dofs, gb)
             )
-            diag = self._mass_dof
             if pull is not None:
-                w3 = np.repeat(pull[0], 3)
-                grad += w3 * (x - pull[1]).ravel()
-                diag = diag + w3
-            hess = self._pattern.assemble([h * h * hm, h * h * hb], diag)
-            phases["assembly"] += time.perf_counter() - tic
-            tic = time.perf_counter()
+                grad += np.repeat(pull[0], 3) * (x - pull[1]).ravel()
             grad += self.contact.gradient(col, x, u)
             hc = self.contact.hessian(col, x, u)
+            contact = None
             if hc is not None:
-                hess = hess + sp.triu(hc, format="csr")
+                slots, vals, _ = self._pattern.contact_slots(hc)
+                contact = (slots, vals)
             phases["contact_derivatives"] += time.perf_counter() - tic
             tic = time.perf_counter()
-            h_ff = hess[free_idx][:, free_idx]
+            data = self._pattern.assemble([hm, hb], h2, diag, contact)
+            phases["assembly"] += time.perf_counter() - tic
+            tic = time.perf_counter()
+            if self._pattern_version != (id(self._pattern), self._pattern.version):
+                self._solver.set_pattern(self._pattern.indptr, self._pattern.indices)
+                self._pattern_version = (id(self._pattern), self._pattern.version)
             try:
-                p_f = self._solver.solve(h_ff, -grad[free_idx])
+                self._solver.factor(data)
+                p = self._solver.solve(-grad)
             except np.linalg.LinAlgError as err:
                 raise SimulationFailure(f"{when}: linear solve failed: {err}") from err
             phases["linear_solve"] += time.perf_counter() - tic
-            if not np.all(np.isfinite(p_f)):
+            if not np.all(np.isfinite(p)):
                 raise SimulationFailure(f"{when}: Newton direction is not finite")
-            p = np.zeros(self.ndof)
-            p[free_idx] = p_f
             p = p.reshape(-1, 3)
-            residual = float(np.sqrt(np.mean(np.sum(p[free] ** 2, axis=1)))) / h if free.any() else 0.0
+            residual = float(np.sqrt(np.mean(np.sum(p**2, axis=1)))) / h
             residuals.append(residual)
             if len(residuals) >= cfg.newton_window and max(residuals[-cfg.newton_window :]) <= cfg.newton_tol:
                 return x, it, halvings, residual, col
@@ -331,13 +343,21 @@ class ClothSimulator:
             while True:
                 trial = x + alpha * p
                 col_t = self.contact.build(trial, cand)
-                if self.contact.separated(col_t, trial) and self._energy(trial, x_hat, x_prev, col_t, pull) <= e0:
-                    break
+                if self.contact.separated(col_t, trial):
+                    e_trial = self._energy(trial, x_hat, x_prev, col_t, pull)
+                    if e_trial <= e0:
+                        break
                 alpha *= 0.5
                 halvings += 1
                 if alpha < 0.5**cfg.max_line_search_halvings:
                     raise SimulationFailure(f"{when}: line search stalled (Newton iteration {it})")
             phases["line_search"] += time.perf_counter() - tic
+            if adaptive:  # trust-region fit of the quadratic model picks the next projection
+                gp = float(grad @ p.ravel())
+                predicted = -alpha * gp * (1.0 - 0.5 * alpha)
+                actual = e0 - e_trial
+                rho = actual / predicted if predicted > 0 else 1.0
+                self._project = membrane.PROJECT_ABS if rho < cfg.trust_ratio else membrane.PROJECT_CLAMP
             x = trial
             col = col_t
             min_d = self.contact.min_distance(col_t, x)
