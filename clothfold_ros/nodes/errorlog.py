@@ -1,14 +1,19 @@
 """ErrorLog: which input errors a node logs, so that none vanish without a line. Pure: no rclpy.
 
-Every error is counted by kind. The first of a kind is logged; later ones of the same kind
-are logged at most once per `interval` wall seconds, each line carrying the kind's count and
-how many were not logged since the previous line. A bad input after a quiet spell is
-therefore always logged, and a flood costs one line per interval.
+Errors are counted by kind: the caller's key plus the message with its numbers blanked, so
+distinct errors are distinct kinds and the same error with other values is one. The first
+of a kind is logged; later ones of the same kind at most once per `interval` wall seconds,
+each line carrying the kind's count and how many were not logged since the previous line.
+A bad input after a quiet spell is therefore always logged, and a flood costs one line per
+interval and kind.
 """
 from __future__ import annotations
 
+import re
 import time
 from typing import Callable
+
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
 class ErrorLog:
@@ -21,6 +26,7 @@ class ErrorLog:
 
     def record(self, kind: str, text: str) -> str | None:
         """Count one error; the line to log now, or None (counted, reported with the next line)."""
+        kind = f"{kind}: {_NUMBER.sub('#', text)}"
         n = self.counts.get(kind, 0) + 1
         self.counts[kind] = n
         now = self.clock()
@@ -43,4 +49,4 @@ class ErrorLog:
         self._unlogged.clear()
         if not left:
             return None
-        return "errors not logged individually: " + ", ".join(f"{k}: {v}" for k, v in sorted(left.items()))
+        return "errors not logged individually: " + "; ".join(f"{v} x [{k}]" for k, v in sorted(left.items()))

@@ -1,0 +1,210 @@
+"""kinematic_robot_node driven directly (this test plays trajectory_node): what the backend must
+refuse or fail, and that it says so. A stray close command must not hold /clock, targets sent
+while nothing is announced are dropped with a log line, a NaN max_effort is refused, targets
+outside its own workspace fail the fold, a fold whose grippers open before the end of the
+announced motion (a cancel upstream) is a failure, repeated bad input keeps being logged with
+counts, and a misspelt parameter is warned about."""
+from __future__ import annotations
+
+import math
+import re
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from clothfold_ros.folding import fold_spec
+from clothfold_ros.garment import make_shirt
+from clothfold_ros.launcher import Launcher, node_command
+from clothfold_ros.pose import Pose
+
+DOMAIN = 156
+DT_NS = 40_000_000
+
+
+@pytest.fixture(scope="module")
+def rig():
+    import os
+
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ["ROS_DOMAIN_ID"] = str(DOMAIN)
+    import rclpy
+    from clothfold_msgs.msg import FoldResult, FoldSpec, GripperCommand
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rosgraph_msgs.msg import Clock
+
+    from clothfold_ros.nodes import common
+
+    with Launcher(domain_id=DOMAIN, echo=False) as launcher:
+        # stall_timeout long: a clock held for a stray close would stop this test, not time out the fold;
+        # stall_timout: misspelt on purpose
+        proc = launcher.start("kinematic_robot_node", node_command(
+            "kinematic_robot_node", params={"real_time_factor": 4.0, "stall_timeout": 600.0, "stall_timout": 5.0}))
+        launcher.wait_for(proc, "kinematic robot", 60)
+        ctx = rclpy.Context()
+        rclpy.init(args=[], context=ctx)
+        node = Node("test_failures_backend", context=ctx)
+        r = type("Rig", (), {})()
+        r.proc, r.launcher, r.cond = proc, launcher, threading.Condition()
+        r.clock_ns, r.results = 0, []
+
+        def on_clock(m):
+            with r.cond:
+                r.clock_ns = m.clock.sec * 1_000_000_000 + m.clock.nanosec
+                r.cond.notify_all()
+
+        def on_result(m):
+            with r.cond:
+                r.results.append(m)
+                r.cond.notify_all()
+
+        node.create_subscription(Clock, common.CLOCK, on_clock, 10)
+        node.create_subscription(FoldResult, common.FOLD_RESULT, on_result, common.RESULTS)
+        r.active = node.create_publisher(FoldSpec, common.FOLD_ACTIVE, common.LATCHED)
+        r.cmd = node.create_publisher(GripperCommand, common.gripper_topic(0, "command"), common.COMMANDS)
+        r.target = node.create_publisher(PoseStamped, common.gripper_topic(0, "target_pose"), common.TARGETS)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        t = threading.Thread(target=ex.spin, daemon=True)
+        t.start()
+        for pub in (r.active, r.cmd, r.target):  # matched before anything is sent
+            deadline = time.monotonic() + 30
+            while pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+                time.sleep(0.05)
+        try:
+            yield r
+        finally:
+            print("\n".join(proc.lines))  # shown when a test fails
+            ex.shutdown(1.0)
+            node.destroy_node()
+            rclpy.try_shutdown(context=ctx)
+            t.join(2)
+        launcher.check_alive()
+
+
+def _now(r, after_ns: int = 0, timeout: float = 30.0) -> int:
+    """The backend's clock once it is past after_ns; fails if /clock does not get there."""
+    deadline = time.monotonic() + timeout
+    with r.cond:
+        while r.clock_ns <= after_ns:
+            left = deadline - time.monotonic()
+            assert left > 0, f"/clock stuck at {r.clock_ns * 1e-9:.3f} s (wanted past {after_ns * 1e-9:.3f} s)"
+            r.cond.wait(min(left, 0.2))
+        return r.clock_ns
+
+
+def _result(r, n_before: int, timeout: float = 30.0):
+    deadline = time.monotonic() + timeout
+    with r.cond:
+        while len(r.results) <= n_before:
+            left = deadline - time.monotonic()
+            assert left > 0, "no /fold/result"
+            r.cond.wait(min(left, 0.2))
+        return r.results[n_before]
+
+
+def _log(r, words: str, timeout: float = 20.0) -> str:
+    return r.launcher.wait_for(r.proc, re.escape(words), timeout).string
+
+
+def _stamp(ns: int):
+    from builtin_interfaces.msg import Time
+
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _command(r, stamp_ns: int, position: float, effort: float = -1.0) -> None:
+    from clothfold_msgs.msg import GripperCommand
+
+    m = GripperCommand(gripper="gripper_0", position=position, max_effort=effort)
+    m.header.stamp, m.header.frame_id = _stamp(stamp_ns), "table"
+    r.cmd.publish(m)
+
+
+def _targets(r, stamps, positions) -> None:
+    from clothfold_ros.ros_conversions import pose_stamped
+
+    for s, p in zip(stamps, positions):
+        r.target.publish(pose_stamped(Pose(np.asarray(p, float), np.array([0.0, 0.0, 0.0, 1.0])), s))
+
+
+def _announce(r, t0_ns: int, duration: float):
+    from clothfold_ros.ros_conversions import PlannedFold, fold_spec_to_msg
+
+    spec = fold_spec("left_sleeve", make_shirt(1, max_area=5e-3).keypoints())
+    r.active.publish(fold_spec_to_msg(PlannedFold(spec, 0.5, 30.0, duration, 0.2, 0, t0_ns)))
+    return spec
+
+
+def _fold(r, duration: float, open_after: float, jump_at: int | None = None) -> object:
+    """Announce a one-gripper fold of `duration` s starting 0.6 s ahead, close, stream a slow straight
+    line of targets every dt (position x = 50 m at step jump_at), open after open_after s; its result."""
+    t0 = (_now(r) // DT_NS + 15) * DT_NS
+    spec = _announce(r, t0, duration)
+    time.sleep(0.2)  # the announcement before the commands (different topics)
+    _command(r, t0, 0.0)
+    n = round(duration / 0.04)
+    stamps = [t0 + k * DT_NS for k in range(n + 1)]
+    start = spec.start_poses[0].position
+    pos = [start + [0.002 * k, 0.0, 0.0] for k in range(n + 1)]
+    if jump_at is not None:
+        pos[jump_at] = [50.0, 0.0, 0.1]
+    before = len(r.results)
+    _targets(r, stamps, pos)
+    _command(r, t0 + round(open_after / 0.04) * DT_NS, 0.08)
+    return _result(r, before)
+
+
+def test_misspelt_parameter_is_warned(rig):
+    _log(rig, "unknown parameter 'stall_timout' ignored (misspelt?)")
+
+
+def test_targets_while_idle_are_dropped(rig):
+    r = rig
+    _targets(r, [_now(r) + 100 * DT_NS], [[0.0, 0.0, 0.1]])  # nothing announced or pending
+    _log(r, "dropped: the gripper is open and no fold")
+
+
+def test_stray_close_does_not_hold_the_clock(rig):
+    r = rig
+    stray = _now(r) + 100 * DT_NS  # 4 s ahead: 1 s at real_time_factor 4; no target, no fold announced
+    _command(r, stray, 0.0)
+    _now(r, after_ns=stray + 25 * DT_NS)  # stall_timeout is 600 s: a held clock fails here
+    _log(r, f"close command stamped {stray * 1e-9:.3f} s dropped: no target pose")
+
+
+def test_nan_max_effort_is_refused(rig):
+    r = rig
+    _command(r, _now(r) + 100 * DT_NS, 0.0, effort=math.nan)
+    _log(r, "max_effort must be finite")
+
+
+def test_backend_workspace_limit_fails_the_fold(rig):
+    r = rig
+    ok = _fold(r, 1.0, 1.0)
+    assert ok.success and ok.steps == 25, (ok.success, ok.reason)
+    far = _fold(r, 1.0, 1.0, jump_at=10)  # x = 50 m at step 10
+    assert not far.success and "outside the backend's workspace" in far.reason, far.reason
+
+
+def test_grippers_opened_early_is_a_failure(rig):
+    early = _fold(rig, 2.0, 0.8)  # grippers opened at 0.8 s of a 2 s motion: what a cancel looks like
+    assert not early.success and "before the end of the planned motion" in early.reason, early.reason
+
+
+def test_repeated_bad_input_keeps_being_logged(rig):
+    r = rig
+    from geometry_msgs.msg import PoseStamped
+
+    bad = PoseStamped()
+    bad.header.frame_id = "camera"
+    for _ in range(5):
+        r.target.publish(bad)
+    _log(r, "frame 'camera' is not 'table' (#1 of this kind")
+    time.sleep(1.5)  # longer than the 1 s log interval: the next bad input is logged, with the counts
+    r.target.publish(bad)
+    line = _log(r, "(#6 of this kind")
+    assert "4 more not logged" in line, line
