@@ -49,31 +49,37 @@ def rest_state(rest: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 @nb.njit(cache=True)
-def _hinge(x0, x1, x2, x3):
-    e = x1 - x0
-    na = np.cross(x1 - x0, x2 - x0)
-    nb_ = np.cross(x0 - x1, x3 - x1)
-    elen = np.sqrt(e @ e)
-    na2 = na @ na
-    nb2 = nb_ @ nb_
-    sin = (np.cross(na, nb_) @ e) / elen
-    cos = na @ nb_
+def _hinge_into(x, h0, h1, h2, h3, g):
+    """Signed dihedral angle of hinge (x[h0], x[h1]; opposite x[h2], x[h3]); writes d theta/dx into g (12,)."""
+    e0, e1, e2 = x[h1, 0] - x[h0, 0], x[h1, 1] - x[h0, 1], x[h1, 2] - x[h0, 2]
+    a0, a1, a2 = x[h2, 0] - x[h0, 0], x[h2, 1] - x[h0, 1], x[h2, 2] - x[h0, 2]
+    b0, b1, b2 = x[h3, 0] - x[h1, 0], x[h3, 1] - x[h1, 1], x[h3, 2] - x[h1, 2]
+    # na = e x a ; nb = (-e) x b
+    na0, na1, na2 = e1 * a2 - e2 * a1, e2 * a0 - e0 * a2, e0 * a1 - e1 * a0
+    nb0, nb1, nb2 = -(e1 * b2 - e2 * b1), -(e2 * b0 - e0 * b2), -(e0 * b1 - e1 * b0)
+    elen = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+    na2s = na0 * na0 + na1 * na1 + na2 * na2
+    nb2s = nb0 * nb0 + nb1 * nb1 + nb2 * nb2
+    cx0, cx1, cx2 = na1 * nb2 - na2 * nb1, na2 * nb0 - na0 * nb2, na0 * nb1 - na1 * nb0
+    sin = (cx0 * e0 + cx1 * e1 + cx2 * e2) / elen
+    cos = na0 * nb0 + na1 * nb1 + na2 * nb2
     theta = np.arctan2(sin, cos)
-    g = np.empty(12)
-    g2 = -elen / na2 * na
-    g3 = -elen / nb2 * nb_
-    ehat = e / elen
-    a0 = ((x2 - x1) @ ehat) / elen
-    a1 = ((x0 - x2) @ ehat) / elen
-    b0 = ((x3 - x1) @ ehat) / elen
-    b1 = ((x0 - x3) @ ehat) / elen
-    g0 = a0 * g2 + b0 * g3
-    g1 = a1 * g2 + b1 * g3
-    g[0:3] = g0
-    g[3:6] = g1
-    g[6:9] = g2
-    g[9:12] = g3
-    return theta, g
+    fa = -elen / na2s
+    fb = -elen / nb2s
+    u0, u1, u2 = e0 / elen, e1 / elen, e2 / elen
+    # projections of the opposite vertices on the edge, relative to its length
+    pa0 = ((x[h2, 0] - x[h1, 0]) * u0 + (x[h2, 1] - x[h1, 1]) * u1 + (x[h2, 2] - x[h1, 2]) * u2) / elen
+    pa1 = -(a0 * u0 + a1 * u1 + a2 * u2) / elen
+    pb0 = (b0 * u0 + b1 * u1 + b2 * u2) / elen
+    pb1 = ((x[h0, 0] - x[h3, 0]) * u0 + (x[h0, 1] - x[h3, 1]) * u1 + (x[h0, 2] - x[h3, 2]) * u2) / elen
+    ga = (fa * na0, fa * na1, fa * na2)
+    gb = (fb * nb0, fb * nb1, fb * nb2)
+    for r in range(3):
+        g[r] = pa0 * ga[r] + pb0 * gb[r]
+        g[3 + r] = pa1 * ga[r] + pb1 * gb[r]
+        g[6 + r] = ga[r]
+        g[9 + r] = gb[r]
+    return theta
 
 
 @nb.njit(cache=True, parallel=True)
@@ -84,7 +90,8 @@ def bending_derivatives(x, h, theta_rest, weight, k, want_hess):
     hess = np.empty((n, 12, 12)) if want_hess else np.empty((0, 12, 12))
     energies = np.empty(n)
     for i in nb.prange(n):
-        theta, g = _hinge(x[h[i, 0]], x[h[i, 1]], x[h[i, 2]], x[h[i, 3]])
+        g = np.empty(12)
+        theta = _hinge_into(x, h[i, 0], h[i, 1], h[i, 2], h[i, 3], g)
         d = theta - theta_rest[i]
         # keep the angle difference in (-pi, pi]
         if d > np.pi:
@@ -93,12 +100,15 @@ def bending_derivatives(x, h, theta_rest, weight, k, want_hess):
             d += 2.0 * np.pi
         c = k * weight[i]
         energies[i] = c * d * d
+        gi = grads[i]
         for a in range(12):
-            grads[i, a] = 2.0 * c * d * g[a]
+            gi[a] = 2.0 * c * d * g[a]
         if want_hess:
+            hi = hess[i]
             for a in range(12):
+                ca = 2.0 * c * g[a]
                 for b in range(12):
-                    hess[i, a, b] = 2.0 * c * g[a] * g[b]
+                    hi[a, b] = ca * g[b]
     return energies.sum(), grads, hess
 
 
