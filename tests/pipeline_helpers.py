@@ -9,10 +9,11 @@ from clothfold_ros.launcher import Launcher
 
 @contextmanager
 def running_pipeline(monkeypatch, domain: int, backend: str, overrides: dict[str, dict],
-                     client_name: str) -> Iterator[tuple]:
+                     client_name: str, check_alive: bool = True) -> Iterator[tuple]:
     """(launcher, PipelineClient) for `backend` ("sim" or "kinematic") with parameter overrides.
 
-    Every process is stopped on exit; a node that died during the test fails it.
+    Every process is stopped on exit; a node that died during the test fails it (unless
+    check_alive is false: the test kills one itself).
     """
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -23,7 +24,8 @@ def running_pipeline(monkeypatch, domain: int, backend: str, overrides: dict[str
         try:
             with PipelineClient(client_name) as client:
                 yield launcher, client
-            launcher.check_alive()
+            if check_alive:
+                launcher.check_alive()
         finally:
             dump_logs(launcher)  # captured: pytest shows it only when the test fails
 

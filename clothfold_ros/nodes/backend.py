@@ -162,6 +162,10 @@ class LockStepBackend(Node):
         if not self.ls.closed:
             self.ls.hold_until = plan.stamp_ns  # do not run the idle clock past the fold's start
 
+    def _open_pending(self, gripper: int, stamp_ns: int) -> bool:
+        return any(not c.closed and c.gripper == gripper and c.stamp_ns <= stamp_ns + STAMP_TOLERANCE_NS
+                   for c in self.ls.pending)
+
     def _closes_pending_at(self, stamp_ns: int) -> bool:
         return any(c.closed and abs(c.stamp_ns - stamp_ns) <= STAMP_TOLERANCE_NS for c in self.ls.pending)
 
@@ -198,6 +202,12 @@ class LockStepBackend(Node):
                         self.error_once(f"stray_close{cmd.gripper}", f"gripper_{cmd.gripper} close command stamped "
                                         f"{cmd.stamp_ns * 1e-9:.3f} s dropped: no target pose at its stamp and no "
                                         f"fold announced on {common.FOLD_ACTIVE} for it")
+                        continue
+                    if pose is None and not self.ls.closed and self._open_pending(cmd.gripper, cmd.stamp_ns):
+                        self.ls.pop_command()  # cancelled before it started: the open is already queued
+                        self.announced = None
+                        self.get_logger().warning(f"gripper_{cmd.gripper} close at {cmd.stamp_ns * 1e-9:.3f} s "
+                                                  "dropped: the fold was cancelled before it started")
                         continue
                     if pose is None:
                         return self._stalled(f"no target pose of gripper_{cmd.gripper} at its close time "

@@ -17,6 +17,7 @@ from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
 
 from .. import ros_conversions as rc
 from . import common
@@ -33,6 +34,8 @@ class PipelineClient:
         self.results: list[FoldResult] = []
         self.node.create_subscription(Keypoints, common.KEYPOINTS, self._on_keypoints, common.LATCHED)
         self.node.create_subscription(FoldResult, common.FOLD_RESULT, self._on_result, common.RESULTS)
+        self.clock_messages = 0
+        self.node.create_subscription(Clock, common.CLOCK, self._on_clock, 10)
         self.plan_client = self.node.create_client(PlanFold, common.PLAN_FOLD)
         self.execute_client = ActionClient(self.node, ExecuteFold, common.EXECUTE_FOLD)
         self.keypoints_pub = self.node.create_publisher(Keypoints, common.KEYPOINTS, common.LATCHED)
@@ -52,6 +55,15 @@ class PipelineClient:
         with self.cond:
             self.keypoints = msg
             self.cond.notify_all()
+
+    def _on_clock(self, _msg: Clock) -> None:
+        with self.cond:
+            self.clock_messages += 1
+
+    def clock_count(self) -> int:
+        """/clock messages received so far."""
+        with self.cond:
+            return self.clock_messages
 
     def _on_result(self, msg: FoldResult) -> None:
         with self.cond:
@@ -99,6 +111,10 @@ class PipelineClient:
 
     def send_goal(self, spec: FoldSpecMsg, timeout: float = 30.0) -> bool:
         """Send an ExecuteFold goal straight to trajectory_node; True if it was accepted."""
+        return bool(self.start_goal(spec, timeout).accepted)
+
+    def start_goal(self, spec: FoldSpecMsg, timeout: float = 30.0):
+        """Send an ExecuteFold goal straight to trajectory_node; its goal handle (accepted or not)."""
         if not self.execute_client.wait_for_server(timeout_sec=timeout):
             raise TimeoutError(f"{common.EXECUTE_FOLD} not available within {timeout:g} s")
         done = threading.Event()
@@ -106,7 +122,15 @@ class PipelineClient:
         future.add_done_callback(lambda _: done.set())
         if not done.wait(timeout):
             raise TimeoutError(f"{common.EXECUTE_FOLD} did not answer within {timeout:g} s")
-        return bool(future.result().accepted)
+        return future.result()
+
+    def cancel(self, handle, timeout: float = 30.0) -> None:
+        """Ask trajectory_node to cancel a running goal (TimeoutError if it does not answer)."""
+        done = threading.Event()
+        future = handle.cancel_goal_async()
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(timeout):
+            raise TimeoutError(f"cancel of the goal not answered within {timeout:g} s")
 
     def result_count(self) -> int:
         with self.cond:
