@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Sequence
 
 import numpy as np
@@ -43,6 +43,7 @@ SHAPE_BOUNDS = {
     "sleeve_width_end": (0.12, 0.24), "sleeve_length": (0.03, 1.05), "sleeve_angle_deg": (-15.0, 65.0),
     "scale": (0.3, 1.2),
 }
+START_SLEEVES = ((0.76, -3.0), (0.76, 25.0), (0.76, 50.0), (0.4, 10.0), (0.4, 45.0), (0.15, 10.0))  # length, deg
 FOLD_ANGLE_RANGE = math.radians(15.0)  # fitted fold line angle within +- this of the planned one
 FOLD_OFFSET_RANGE = 0.06  # m, fitted fold line offset within +- this of the planned one
 # a fold line FOLD_PRIOR_ANGLE rad or FOLD_PRIOR_OFFSET m off the planned one costs as much as
@@ -85,7 +86,8 @@ class EstimatorConfig:
     min_area (m^2): less is 'no cloth', a blob over max_area (m^2) is the table; blob_fraction: a second blob at least this fraction
     of the largest is 'two blobs'; contour_points: outline points fitted; max_residual (m);
     max_nfev: function evaluations per fit; tolerance: least_squares
-    ftol = xtol = gtol; spacing: model outline sample spacing (m)."""
+    ftol = xtol = gtol; spacing: model outline sample spacing (m); max_starts: fits tried
+    from the best-ranked starts until one's residual is under max_residual / 2."""
 
     pixel: float = 0.005
     min_height: float = -0.01
@@ -98,7 +100,8 @@ class EstimatorConfig:
     contour_points: int = 200
     max_residual: float = 0.01
     max_nfev: int = 400
-    tolerance: float = 1e-5
+    tolerance: float = 1e-4
+    max_starts: int = 3
     spacing: float = 0.015
 
 
@@ -277,8 +280,12 @@ class _Model:
         lengths = np.linalg.norm(np.roll(o, -1, axis=0) - o, axis=1)
         self.counts = np.maximum(3, np.ceil(lengths / spacing).astype(int))
         self.edge = np.repeat(np.arange(13), self.counts)
+        self.edge_next = (self.edge + 1) % 13
+        self.sa0 = np.arange(len(self.edge))
+        self.sb0 = (self.sa0 + 1) % len(self.edge)
         self.u = np.concatenate([np.arange(c) / c for c in self.counts])
         self.crease_u = np.linspace(0.0, 1.0, 32)
+        self.max_points = len(self.u) + len(self.crease_u) * len(self.names)
         self.nominal = self._nominal_lines(self.shape0)
 
     def _nominal_lines(self, shape: np.ndarray) -> list[tuple[np.ndarray, float, float]]:
@@ -320,10 +327,9 @@ class _Model:
         lay then), mirrored fold by fold; segments cut by a fold are dropped."""
         shape, pose, f = self.split(x)
         o = model_outline(shape)
-        a, b = o[self.edge], np.roll(o, -1, axis=0)[self.edge]
-        pts = a + self.u[:, None] * (b - a)
-        sa = np.arange(len(pts))
-        sb = np.roll(sa, -1)
+        a = o[self.edge]
+        pts = a + self.u[:, None] * (o[self.edge_next] - a)
+        sa, sb = self.sa0, self.sb0
         sig = np.zeros(len(pts), np.int64)  # bit k: moved by fold k
         for k, ln in enumerate(self.lines(f)):
             q, n = ln.point, ln.normal
@@ -347,9 +353,9 @@ class _Model:
         return pts @ _rot(pose[2]).T + pose[:2], sa[ok], sb[ok]
 
 
-def _outline_distances(contour: np.ndarray, pts: np.ndarray, sa: np.ndarray, sb: np.ndarray) -> np.ndarray:
-    """Distance (m) of each contour point (C, 2) to the nearest model segment (pts[sa], pts[sb]),
-    searched among the segments at the two model points nearest to it."""
+def _candidates(contour: np.ndarray, pts: np.ndarray, sa: np.ndarray, sb: np.ndarray):
+    """Per contour point (C, 2): the model segments at its two nearest model points, as point
+    index pairs (C, 4, 2) (-1 = none), and its nearest model point (C,)."""
     from scipy.spatial import cKDTree
 
     _, near = cKDTree(pts).query(contour, k=2)
@@ -357,15 +363,27 @@ def _outline_distances(contour: np.ndarray, pts: np.ndarray, sa: np.ndarray, sb:
     before = np.full(len(pts), -1)
     after[sa] = np.arange(len(sa))
     before[sb] = np.arange(len(sb))
-    cand = np.concatenate([after[near], before[near]], axis=1)  # (C, 4) segment ids, -1 = none
-    seg = np.maximum(cand, 0)
-    a, b = pts[sa[seg]], pts[sb[seg]]  # (C, 4, 2)
+    seg = np.concatenate([after[near], before[near]], axis=1)  # (C, 4) segment ids, -1 = none
+    pairs = np.stack([sa[np.maximum(seg, 0)], sb[np.maximum(seg, 0)]], axis=2)
+    pairs[seg < 0] = -1
+    return pairs, near[:, 0]
+
+
+def _candidate_distances(contour: np.ndarray, pts: np.ndarray, pairs: np.ndarray, nearest: np.ndarray) -> np.ndarray:
+    """Distance (m) of each contour point to the nearest of its candidate segments / point."""
+    a, b = pts[np.maximum(pairs[..., 0], 0)], pts[np.maximum(pairs[..., 1], 0)]  # (C, 4, 2)
     ab = b - a
     q = contour[:, None, :]
     t = np.clip(np.sum((q - a) * ab, axis=2) / np.maximum(np.sum(ab * ab, axis=2), 1e-18), 0.0, 1.0)
     d = np.linalg.norm(q - (a + t[..., None] * ab), axis=2)
-    d[cand < 0] = np.inf
-    return np.minimum(d.min(axis=1), np.linalg.norm(contour - pts[near[:, 0]], axis=1))
+    d[pairs[..., 0] < 0] = np.inf
+    return np.minimum(d.min(axis=1), np.linalg.norm(contour - pts[nearest], axis=1))
+
+
+def _outline_distances(contour: np.ndarray, pts: np.ndarray, sa: np.ndarray, sb: np.ndarray) -> np.ndarray:
+    """Distance (m) of each contour point (C, 2) to the nearest model segment (pts[sa], pts[sb]),
+    searched among the segments at the two model points nearest to it."""
+    return _candidate_distances(contour, pts, *_candidates(contour, pts, sa, sb))
 
 
 # -- the estimator ----------------------------------------------------------------------------
@@ -381,7 +399,7 @@ def _moments(xy: np.ndarray) -> tuple[np.ndarray, float]:
     return c, math.atan2(major[1], major[0])
 
 
-def _area_points(outline: np.ndarray, spacing: float = 0.01) -> np.ndarray:
+def _area_points(outline: np.ndarray, spacing: float = 0.02) -> np.ndarray:
     import shapely
 
     poly = shapely.Polygon(outline)
@@ -426,69 +444,102 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
             t = np.asarray(prior.pose[:2])
             fixed = [FoldLine(ln.name, r_inv @ (ln.point - t), r_inv @ ln.normal) for ln in prior.folds]
     free_shape = not names or shape_prior is None
-    shape0 = _shape_vector(shape_prior if shape_prior is not None else SHAPES[1])
-    if not names and shape_prior is None:  # start at the area-matched default shirt
-        import shapely
-
-        shape0[-1] *= math.sqrt(view.area / shapely.Polygon(model_outline(shape0)).area)
-    model = _Model(shape0, names, free_shape, spacing=config.spacing, fixed=fixed)
     lo_s = np.array([SHAPE_BOUNDS[k][0] for k in SHAPE_FIELDS])
     hi_s = np.array([SHAPE_BOUNDS[k][1] for k in SHAPE_FIELDS])
-    shape0 = np.clip(shape0, lo_s + 1e-6, hi_s - 1e-6)
-    model.shape0 = shape0
+    if shape_prior is not None:
+        shapes = [_shape_vector(shape_prior)]
+    else:  # area-matched starts with short/long, straight/angled sleeves
+        import shapely
+
+        shapes = []
+        for length, angle in START_SLEEVES:
+            v = _shape_vector(replace(SHAPES[1], sleeve_length=length, sleeve_angle_deg=angle))
+            v[-1] *= math.sqrt(view.area / shapely.Polygon(model_outline(v)).area)
+            shapes.append(np.clip(v, lo_s + 1e-6, hi_s - 1e-6))
     n_f = len(names) - len(fixed)
     f_lo = np.tile([-FOLD_ANGLE_RANGE, -FOLD_OFFSET_RANGE], n_f)
     f_hi = -f_lo
-    w_out = 1.0
 
-    def residuals(x: np.ndarray, mdl: _Model) -> np.ndarray:
+    def residuals(x: np.ndarray, mdl: _Model, assoc=None) -> np.ndarray:
+        """Outline distances (C,), model points outside the cloth (M,), fold line prior (2K,).
+        assoc: contour-to-model candidate segments to keep (for the Jacobian's differences)."""
         pts, sa, sb = mdl.samples(x)
-        r1 = _outline_distances(contour, pts, sa, sb)
-        r2 = view.distance_outside(pts) * w_out * math.sqrt(len(contour) / len(pts))
+        if assoc is None or len(pts) != assoc[2]:
+            r1 = _outline_distances(contour, pts, sa, sb)
+        else:
+            r1 = _candidate_distances(contour, pts, assoc[0], assoc[1])
+        r2 = np.zeros(mdl.max_points)  # fixed length: a crease may vanish (its line off the cloth)
+        r2[:len(pts)] = view.distance_outside(pts) * math.sqrt(len(contour) / mdl.max_points)
         # weak pull of the fitted fold lines toward the planned ones (where a crease is hidden)
         r3 = FOLD_PRIOR_WEIGHT * (mdl.split(x)[2] / [FOLD_PRIOR_ANGLE, FOLD_PRIOR_OFFSET]).ravel()
         return np.concatenate([r1, r2, r3])
 
-    def pack(shape, pose, f):
-        return np.concatenate([shape if free_shape else [], pose, f.ravel()])
+    def jacobian(x: np.ndarray, mdl: _Model, steps: np.ndarray) -> np.ndarray:
+        """Forward differences with the contour-to-model association of x kept fixed."""
+        pts, sa, sb = mdl.samples(x)
+        pairs, nearest = _candidates(contour, pts, sa, sb)
+        assoc = (pairs, nearest, len(pts))
+        f0 = residuals(x, mdl, assoc)
+        jac = np.empty((len(f0), len(x)))
+        for j, h in enumerate(steps):
+            xj = x.copy()
+            xj[j] += h
+            jac[:, j] = (residuals(xj, mdl, assoc) - f0) / h
+        return jac
 
-    # start: align the model's area moments with the blob's, four headings
+    def pack(shape, pose, f):
+        return np.concatenate([shape if free_shape else [], pose, np.ravel(f)])
+
+    # starts: each start shape with its area moments aligned to the blob's (four headings),
+    # or the given pose; ranked by their cost as they are
     cm, yaw_m = _moments(_mask_points(view))
-    folded_area, _ = _fold_xy(_area_points(model_outline(shape0)),
-                              [(ln.point, ln.normal) for ln in model.lines(np.zeros((n_f, 2)))])
-    cmod, yaw_mod = _moments(folded_area)
-    if pose_prior is not None:
-        starts = [np.asarray(pose_prior, float)]
-    else:
-        starts = []
-        for k in range(4):
-            yaw = yaw_m - yaw_mod + k * math.pi / 2
-            starts.append(np.r_[cm - _rot(yaw) @ cmod, yaw])
-    pose_lo = lambda p: np.r_[p[:2] - 0.3, p[2] - math.pi]  # noqa: E731
-    pose_hi = lambda p: np.r_[p[:2] + 0.3, p[2] + math.pi]  # noqa: E731
-    if len(starts) > 1:  # the heading whose start explains the outline best
-        x_try = [np.r_[p0, np.zeros(2 * n_f)] for p0 in starts]
-        coarse = _Model(shape0, names, False, spacing=0.02, fixed=fixed)
-        cost = [np.sum(np.sqrt(1.0 + (residuals(x, coarse) / 0.01) ** 2) - 1.0) for x in x_try]
-        p_start = starts[int(np.argmin(cost))]
-    else:
-        p_start = starts[0]
-    x0 = pack(shape0, p_start, np.zeros((n_f, 2)))
-    lo = pack(lo_s, pose_lo(p_start), f_lo)
-    hi = pack(hi_s, pose_hi(p_start), f_hi)
-    x_scale = pack(np.r_[[0.05] * 8, 5.0, 0.05], [0.02, 0.02, 0.05], np.tile([0.05, 0.02], n_f))
-    fit = least_squares(residuals, np.clip(x0, lo + 1e-9, hi - 1e-9), args=(model,), bounds=(lo, hi),
-                        loss="soft_l1", f_scale=0.005, max_nfev=config.max_nfev, x_scale=x_scale,
-                        ftol=config.tolerance, xtol=config.tolerance, gtol=config.tolerance)
-    if fit.status <= 0 or not np.all(np.isfinite(fit.x)):
-        raise FitError(f"shirt model fit did not converge: {fit.message} ({fit.nfev} evaluations)")
+    starts = []
+    for shape0 in shapes:
+        coarse = _Model(shape0, names, False, spacing=0.03, fixed=fixed)
+        if pose_prior is not None:
+            poses = [np.asarray(pose_prior, float)]
+        else:
+            folded_area, _ = _fold_xy(_area_points(model_outline(shape0)),
+                                      [(ln.point, ln.normal) for ln in coarse.lines(np.zeros((n_f, 2)))])
+            cmod, yaw_mod = _moments(folded_area)
+            poses = [np.r_[cm - _rot(yaw) @ cmod, yaw]
+                     for yaw in (yaw_m - yaw_mod + k * math.pi / 2 for k in range(4))]
+        for p0 in poses:
+            r = residuals(np.r_[p0, np.zeros(2 * n_f)], coarse)
+            starts.append((float(np.sum(np.sqrt(1.0 + (r / 0.01) ** 2) - 1.0)), len(starts), shape0, p0))
+    starts.sort(key=lambda t: t[:2])
+
+    def fit_from(shape0: np.ndarray, p0: np.ndarray):
+        model = _Model(shape0, names, free_shape, spacing=config.spacing, fixed=fixed)
+        lo = pack(lo_s, np.r_[p0[:2] - 0.3, p0[2] - math.pi], f_lo)
+        hi = pack(hi_s, np.r_[p0[:2] + 0.3, p0[2] + math.pi], f_hi)
+        x_scale = pack(np.r_[[0.05] * 8, 5.0, 0.05], [0.02, 0.02, 0.05], np.tile([0.05, 0.02], n_f))
+        x0 = np.clip(pack(shape0, p0, np.zeros((n_f, 2))), lo + 1e-9, hi - 1e-9)
+        steps = 1e-4 * x_scale
+        fit = least_squares(residuals, x0, jac=lambda x, mdl: jacobian(x, mdl, steps), args=(model,),
+                            bounds=(lo, hi), loss="soft_l1", f_scale=0.005,
+                            max_nfev=config.max_nfev, x_scale=x_scale, ftol=config.tolerance,
+                            xtol=config.tolerance, gtol=config.tolerance)
+        pts, sa, sb = model.samples(fit.x)
+        return model, fit, float(np.sqrt(np.mean(_outline_distances(contour, pts, sa, sb) ** 2)))
+
+    best, nfev = None, 0
+    for _, _, shape0, p0 in starts[:config.max_starts]:
+        model, fit, resid = fit_from(shape0, p0)
+        nfev += fit.nfev
+        if fit.status > 0 and np.all(np.isfinite(fit.x)) and (best is None or resid < best[2]):
+            best = (model, fit, resid)
+        if best is not None and best[2] <= 0.5 * config.max_residual:
+            break  # good enough: the next starts rank worse
+    if best is None:
+        raise FitError(f"shirt model fit did not converge: {fit.message} ({nfev} evaluations)")
+    model, fit, resid = best
     shape_v, pose, f = model.split(fit.x)
     try:
         shape = ShirtShape(*shape_v)
     except ValueError as err:
         raise FitError(f"fitted shirt shape is invalid: {err}") from err
     pts, sa, sb = model.samples(fit.x)
-    resid = float(np.sqrt(np.mean(_outline_distances(contour, pts, sa, sb) ** 2)))
     r = _rot(pose[2])
     lines_shirt = model.lines(f)
     kp2 = ideal_visible_keypoints(model_outline(shape_v), lines_shirt) @ r.T + pose[:2]
@@ -496,7 +547,7 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
     keypoints = _with_height(kp2, cloth)
     yaw = math.atan2(math.sin(pose[2]), math.cos(pose[2]))
     est = KeypointEstimate(keypoints, shape, (float(pose[0]), float(pose[1]), yaw), lines, resid, pts,
-                           np.stack([pts[sa], pts[sb]], axis=1), len(cloth), int(fit.nfev),
+                           np.stack([pts[sa], pts[sb]], axis=1), len(cloth), int(nfev),
                            time.process_time() - tic)
     if not resid <= config.max_residual:
         raise PoorFitError(f"fit residual {resid * 1e3:.1f} mm exceeds max_residual "
