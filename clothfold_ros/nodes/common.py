@@ -59,19 +59,26 @@ def run(factory: Callable[[], Node], args: list[str] | None = None, threads: int
     rclpy.init(args=sys.argv if args is None else args)
     node = None
     code = 0
+    spinning = False
     try:
         node = factory()
         executor = MultiThreadedExecutor(num_threads=threads) if threads > 1 else SingleThreadedExecutor()
         executor.add_node(node)
+        spinning = True
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as err:  # start-up failure: one clear line, no traceback noise
-        name = getattr(factory, "__name__", "node")
-        print(f"[{name}] fatal: {type(err).__name__}: {err}", file=sys.stderr, flush=True)
-        if node is not None:
-            traceback.print_exc()
-        code = 2
+        if spinning and not rclpy.ok():
+            # SIGINT/SIGTERM shut the context down while the executor was between two waits: rclpy then
+            # raises e.g. "RCLError: failed to initialize wait set"; that is a normal shutdown
+            pass
+        else:
+            name = getattr(factory, "__name__", "node")
+            print(f"[{name}] fatal: {type(err).__name__}: {err}", file=sys.stderr, flush=True)
+            if node is not None:
+                traceback.print_exc()
+            code = 2
     finally:
         if node is not None:
             try:

@@ -4,7 +4,8 @@ Usage: ``player_node BAG [--rate R] [--topics T ...] [--loop] [--start-offset S]
 [--delay S]``. Messages go out in log-time order at ``(t - t0) / rate`` after start; each
 topic is published with a QoS adapted from the recorded offers (reliable / transient_local
 only when every recorded publisher offered it). ``--clock`` publishes rosgraph_msgs/Clock
-with the bag time at HZ and before every message. A damaged or truncated bag gives a one
+with the bag time at HZ and before every message; a /clock recorded in the bag is then not
+replayed (one clock only). A damaged or truncated bag gives a one
 line error (exit code 1), topics whose type is not installed are skipped and reported.
 """
 from __future__ import annotations
@@ -65,6 +66,9 @@ class Player:
         if unknown:
             raise BagError(f"topics not in the bag: {', '.join(unknown)} (has {', '.join(sorted(bag.topics))})")
         self.publishers = {}
+        if clock_hz and "/clock" in names:  # --clock publishes /clock itself: never two clocks
+            names.remove("/clock")
+            self.stats.skipped["/clock"] = "the bag's /clock is not replayed: --clock publishes /clock from bag time"
         for name in names:
             info = bag.topics[name]
             try:
