@@ -26,6 +26,7 @@ class SimConfig:
     xi: float | None = None  # m, minimum mid-surface separation (offset)
     dhat: float | None = None  # m, barrier activation distance beyond xi
     eps_v: float = 1e-3  # m/s, smoothed static friction velocity
+    broad_phase_reuse: float = 1e-3  # m: contact candidates are reused while no vertex moved farther
     table_margin: float = 0.05  # m the table extends beyond the cloth's rest footprint
     check_intersections: bool = True  # assert intersection-free after every step
     threads: int = 1  # ipctk threads (1 keeps results bit-for-bit deterministic)

@@ -26,6 +26,7 @@ class ContactModel:
         friction: float,
         eps_v: float,
         dt: float,
+        reuse_radius: float = 1e-3,
     ) -> None:
         tri = np.asarray(triangles, dtype=np.int32)
         edges = ipctk.edges(tri)
@@ -47,26 +48,54 @@ class ContactModel:
         self.collisions = ipctk.NormalCollisions()
         self.tangential = ipctk.TangentialCollisions()
         self.psd = PSD  # projection of the barrier and friction Hessians
+        # Broad-phase reuse: candidates built at reference positions with the inflation
+        # grown by 2 x reuse_radius stay complete for any move that keeps every vertex
+        # within reuse_radius of its reference position.
+        self.reuse_radius = float(reuse_radius)
+        self._cache_ref: np.ndarray | None = None
+        self._cache: ipctk.Candidates | None = None
+        self.broad_phases = 0  # broad-phase builds (statistics)
 
     # -- collision sets --------------------------------------------------------------
     def build(self, x: np.ndarray, candidates: ipctk.Candidates | None = None) -> ipctk.NormalCollisions:
         """Active barrier collisions at positions x (N, 3).
 
-        `candidates` from `sweep_candidates` of a move through x skip the broad phase.
+        `candidates` (from `candidates` of a move through x) skip the broad phase.
         """
         xf = np.asfortranarray(x)
         if candidates is None:
-            candidates = ipctk.Candidates()
-            candidates.build(self.mesh, xf, self.barrier_dhat + self.barrier_dmin)
+            candidates = self.candidates(x)
         col = ipctk.NormalCollisions()
         col.build(candidates, self.mesh, xf, self.barrier_dhat, self.barrier_dmin)
         return col
 
-    def sweep_candidates(self, x0: np.ndarray, x1: np.ndarray) -> ipctk.Candidates:
+    def sweep_candidates(self, x0: np.ndarray, x1: np.ndarray, inflation: float = 0.0) -> ipctk.Candidates:
         """Broad-phase candidates for every point of the linear move x0 -> x1."""
         cand = ipctk.Candidates()
-        cand.build(self.mesh, np.asfortranarray(x0), np.asfortranarray(x1), self.barrier_dhat + self.barrier_dmin)
+        cand.build(self.mesh, np.asfortranarray(x0), np.asfortranarray(x1),
+                   self.barrier_dhat + self.barrier_dmin + inflation)
+        self.broad_phases += 1
         return cand
+
+    def candidates(self, x0: np.ndarray, x1: np.ndarray | None = None) -> ipctk.Candidates:
+        """Candidates complete for every point of the move x0 -> x1 (x1 None: at x0).
+
+        Reuses the cached set while both ends lie within reuse_radius of its reference
+        positions (then every point of the segment does); otherwise a small move rebuilds
+        the cache at x0 and a large one gets a swept broad phase of its own.
+        """
+        x1 = x0 if x1 is None else x1
+        r2 = self.reuse_radius**2
+        ref = self._cache_ref
+        if ref is not None and ref.shape == x0.shape:
+            if np.sum((x0 - ref) ** 2, axis=1).max() <= r2 and np.sum((x1 - ref) ** 2, axis=1).max() <= r2:
+                return self._cache
+        if np.sum((x1 - x0) ** 2, axis=1).max() <= 0.25 * r2:
+            # two primitives each moving up to reuse_radius close in by up to twice that
+            self._cache = self.sweep_candidates(x0, x0, 2.0 * self.reuse_radius)
+            self._cache_ref = x0.copy()
+            return self._cache
+        return self.sweep_candidates(x0, x1)
 
     def set_kappa(self, kappa: float) -> None:
         self.kappa = float(kappa)
@@ -152,7 +181,7 @@ class ContactModel:
         checked here in closed form (ipctk's step-size query does not look at planes).
         """
         if candidates is None:
-            candidates = self.sweep_candidates(x0, x1)
+            candidates = self.candidates(x0, x1)
         a, b = np.asfortranarray(x0), np.asfortranarray(x1)
         self_ccd = candidates.compute_collision_free_stepsize(
             self.mesh, a, b, min_distance=self.ccd_min_distance, narrow_phase_ccd=self.narrow_phase

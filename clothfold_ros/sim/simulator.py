@@ -108,7 +108,7 @@ class ClothSimulator:
         self._pattern_version = -1  # pattern version the solver has analysed
         xi = material.thickness if cfg.xi is None else cfg.xi
         dhat = material.thickness if cfg.dhat is None else cfg.dhat
-        self.contact = ContactModel(rest, tri, xi, dhat, friction, cfg.eps_v, cfg.dt)
+        self.contact = ContactModel(rest, tri, xi, dhat, friction, cfg.eps_v, cfg.dt, cfg.broad_phase_reuse)
         self.grasps: dict[int, Grasp] = {}
         import ipctk
 
@@ -333,7 +333,7 @@ class ClothSimulator:
                 return x, it, halvings, residual, col
             # Line search: CCD bound, then backtracking on the incremental potential.
             tic = time.perf_counter()
-            cand = self.contact.sweep_candidates(x, x + p)  # one broad phase for CCD and line search
+            cand = self.contact.candidates(x, x + p)  # one candidate set for CCD and line search
             alpha = min(1.0, self.contact.max_step(x, x + p, cand))
             phases["ccd"] += time.perf_counter() - tic
             if alpha <= 0.0:
