@@ -7,14 +7,17 @@ clouds first). Steps:
    table; refuse empty / mostly invalid clouds, no cloth, several cloth blobs;
 2. top view: rasterise the cloth points (pixel `pixel` m), close small holes, take the
    largest connected component and its outline (OpenCV), and the distance to the mask;
-3. fit the parametric shirt (9 shape parameters + scale, docs/method.md section 1) with a planar
-   pose (x, y, yaw) and, for a partly folded shirt, the folds done so far (each fold line
+3. fit the parametric shirt (9 shape parameters + scale, docs/method.md section 1) with
+   a planar pose (x, y, yaw) and, for a partly folded shirt, the folds done so far (each fold line
    fitted: angle and offset about the line planned from the model's own keypoints) by
    scipy.optimize.least_squares. Residuals: every observed outline point's distance to
    the folded model's outline (flat edges and creases), and how far model outline points
-   lie outside the cloth mask. Hidden parts (a sleeve folded onto the body) cannot be seen
-   in a silhouette: for folded states pass the shape fitted on the flat shirt
-   (`shape_prior`), which is then kept fixed;
+   lie outside the cloth mask (the outline is first moved out by half the point spacing:
+   the outermost returns lie that far inside the cloth's edge). Flat: several start shapes
+   (short/long, straight/angled sleeves) and headings are ranked and the best fitted.
+   Hidden parts (a sleeve folded onto the body) cannot be seen in a silhouette: for folded
+   states pass the previous stage's estimate (`prior`): its shape and earlier fold lines
+   are kept, the pose and the newest fold lines are fitted;
 4. keypoints with the folded-state semantics of `visible` (what a camera sees), their z
    the median cloud height around them.
 
@@ -109,8 +112,10 @@ class EstimatorConfig:
 class KeypointEstimate:
     """keypoints: name -> (3,) m (table frame, visible semantics); shape: fitted ShirtShape;
     pose: (x m, y m, yaw rad) of the shirt frame in the table frame; folds: fitted fold lines
-    (table frame); residual: RMS outline distance (m); outline: (K, 2) model outline points
-    (table frame, consecutive points joined unless `outline_breaks` marks it)."""
+    (table frame); residual: RMS distance (m) of the observed outline to the model's;
+    outline: (K, 2) model outline sample points and segments: (S, 2, 2) the model's outline
+    and creases as line segments (table frame); n_points: cloth points used; nfev: model
+    evaluations; seconds: CPU time (process) of the estimate."""
 
     keypoints: dict[str, np.ndarray]
     shape: ShirtShape
