@@ -101,7 +101,10 @@ def test_parameter_changes_are_checked(env):
         for change, words in [(Parameter("rate", value=0.0), "out of range"),
                               (Parameter("max_speed", value=math.inf), "max_speed"),
                               (Parameter("workspace_min", value=[0.0, 0.0, 2.0]), "below workspace_max"),
-                              (Parameter("workspace_max", value=[1.0, 1.0]), "3 elements")]:
+                              (Parameter("workspace_max", value=[1.0, 1.0]), "3 elements"),
+                              # the refusal names the parameter that was set
+                              (Parameter("workspace_max", value=[1.0, 1.0, -0.5]), "workspace_max [1.0, 1.0, -0.5]"),
+                              (Parameter("workspace_min", value=[-1.0, 2.0, 0.0]), "workspace_min [-1.0, 2.0, 0.0]")]:
             res = node.set_parameters([change])[0]
             assert not res.successful and words in res.reason, (change.name, res.reason)
         assert params.value(node, "rate") == 50.0

@@ -31,6 +31,13 @@ def pipeline(monkeypatch):
 
 def test_sim_pipeline_equals_run_fold_and_tracks_the_cloth(pipeline):
     launcher, client = pipeline
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from visualization_msgs.msg import Marker
+
+    markers = []
+    client.node.create_subscription(Marker, "/cloth/marker", markers.append,
+                                    QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                                               durability=DurabilityPolicy.VOLATILE))
     flat, _ = keypoints_from_msg(client.wait_keypoints(120))
     resp = client.plan("left_sleeve", execute=True, timeout=60)
     assert resp.success, resp.message
@@ -45,6 +52,11 @@ def test_sim_pipeline_equals_run_fold_and_tracks_the_cloth(pipeline):
     assert ref.success, ref.reason
     assert res.steps == ref.steps
     assert math.isfinite(res.loss) and abs(res.loss - ref.loss) < 1e-9, (res.loss, ref.loss)
+    # the cloth marker at every simulation step (Foxglove shows the fold as it moves)
+    t0 = plan.stamp_ns
+    stamps = {m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in list(markers)}
+    moving = [s for s in stamps if s > t0]
+    assert len(moving) >= 0.9 * res.steps, (len(moving), res.steps)
 
     # keypoints now come from the folded cloth: the left cuff moved onto the shirt
     folded, _ = keypoints_from_msg(client.wait_keypoints(60, newer_than_ns=0))

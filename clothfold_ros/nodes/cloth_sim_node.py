@@ -141,6 +141,8 @@ class ClothSimNode(LockStepBackend):
         # FoldEpisode.advance wants one pose per gripper of the spec; only closed ones are used
         poses = [targets.get(i, ep.spec.start_poses[i]) for i in range(ep.spec.n_grippers)]
         ep.advance(poses)
+        # the mesh marker at every step (Foxglove shows the fold as it happens); state and points at state_period
+        self.marker_pub.publish(rc.mesh_marker(self.sim.x, self.garment.triangles, self.ls.now_ns + self.ls.dt_ns))
         self.publish_state()
 
     def on_open(self, gripper: int) -> None:
