@@ -75,3 +75,20 @@ def test_launcher_escalates_and_leaves_nothing(tmp_path):
     except (ProcessLookupError, FileNotFoundError):
         alive = False
     assert not alive, "a grandchild survived"
+
+
+def test_backend_none_runs_the_pipeline_on_wall_time():
+    """A real driver publishes no /clock: backend none starts no backend and the pipeline nodes with
+    use_sim_time false; the launch file has the same arguments (use_sim_time, lookahead)."""
+    cmds = dict(pipeline_nodes("none"))
+    assert set(cmds) == {"keypoint_node", "fold_planner_node", "trajectory_node"}
+    for n in cmds:
+        assert "use_sim_time:=false" in cmds[n], (n, cmds[n])
+    assert "use_sim_time:=true" in dict(pipeline_nodes("sim"))["trajectory_node"]
+    assert "lookahead:=0.0" in dict(pipeline_nodes("none", lookahead=0.0))["trajectory_node"]
+    tree = ast.parse((ROOT / "launch" / "clothfold.launch.py").read_text())
+    declared = {c.args[0].value for c in ast.walk(tree) if isinstance(c, ast.Call)
+                and getattr(c.func, "id", "") == "DeclareLaunchArgument"}
+    assert {"backend", "use_sim_time", "lookahead"} <= declared, declared
+    src = (ROOT / "launch" / "clothfold.launch.py").read_text()
+    assert "'false' if '" in src and "== 'none'" in src  # use_sim_time defaults to false with backend:=none
