@@ -123,13 +123,8 @@ def bending_energy(x, h, theta_rest, weight, k):
     n = h.shape[0]
     energies = np.empty(n)
     for i in nb.prange(n):
-        x0, x1, x2, x3 = x[h[i, 0]], x[h[i, 1]], x[h[i, 2]], x[h[i, 3]]
-        e = x1 - x0
-        na = np.cross(e, x2 - x0)
-        nb_ = np.cross(x0 - x1, x3 - x1)
-        elen = np.sqrt(e @ e)
-        theta = np.arctan2((np.cross(na, nb_) @ e) / elen, na @ nb_)
-        d = theta - theta_rest[i]
+        g = np.empty(12)
+        d = _hinge_into(x, h[i, 0], h[i, 1], h[i, 2], h[i, 3], g) - theta_rest[i]
         if d > np.pi:
             d -= 2.0 * np.pi
         elif d < -np.pi:

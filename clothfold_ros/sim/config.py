@@ -22,6 +22,7 @@ class SimConfig:
     grasp_slip: float = 2e-3  # m: held cloth farther than this from its grip point slips in the grip
     psd_projection: str = "clamp"  # "clamp", "abs" (negative membrane eigenvalues set to 0 or |.|) or "adaptive"
     trust_ratio: float = 0.01  # adaptive: |.| after an iteration whose actual/predicted decrease was below this
+    pattern_growth_rings: int = 1  # a new contact pair also adds its neighbours' pairs (rings) to the pattern
     linear_solver: str = "auto"  # "pardiso", "superlu" or "auto" (PARDISO when MKL is there)
     xi: float | None = None  # m, minimum mid-surface separation (offset)
     dhat: float | None = None  # m, barrier activation distance beyond xi

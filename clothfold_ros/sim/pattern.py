@@ -2,7 +2,10 @@
 
 The pattern holds the elastic blocks (triangles, hinges), the diagonal and every
 contact entry seen so far; a contact pair that separates keeps its slot (with zeros), so
-the linear solver re-runs its symbolic analysis only when a new pair appears. Element
+the linear solver re-runs its symbolic analysis only when a new pair appears. A new
+pair (a, b) also brings in the pairs of the mesh neighbours of a and b (`growth_rings`
+rings around each): contact fronts advance to neighbouring vertices, and each analysis
+costs more than the factorizations it saves. Element
 Hessians go straight into the CSR value array through precomputed slot maps (one
 serial pass, so sums happen in a fixed order: assembly is bit-for-bit reproducible).
 """
@@ -53,8 +56,22 @@ def _scatter(data, slots, values):
 class HessianPattern:
     """Upper CSR pattern over `ndof` DOFs for element blocks, the diagonal and contacts."""
 
-    def __init__(self, ndof: int, blocks: list[np.ndarray]) -> None:
+    def __init__(self, ndof: int, blocks: list[np.ndarray], triangles: np.ndarray | None = None,
+                 growth_rings: int = 1) -> None:
         self.ndof = ndof
+        self._rings = None
+        if triangles is not None and growth_rings > 0:
+            nv = ndof // 3
+            t = np.asarray(triangles, dtype=np.int64)
+            r = np.concatenate([t[:, [0, 1, 2, 0, 1, 2]].ravel(), np.arange(nv)])
+            c = np.concatenate([t[:, [1, 2, 0, 2, 0, 1]].ravel(), np.arange(nv)])
+            ring = sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(nv, nv))
+            ring.data[:] = 1.0
+            reach = ring
+            for _ in range(growth_rings - 1):
+                reach = reach @ ring
+            reach.data[:] = 1.0
+            self._rings = reach.tocsr()
         self._blocks = [np.asarray(b, dtype=np.int64) for b in blocks]
         keys = [np.arange(ndof, dtype=np.int64) * (ndof + 1)]  # diagonal
         for dofs in self._blocks:
@@ -105,9 +122,28 @@ class HessianPattern:
         missing = self.keys[slots_c] != keys
         grew = bool(missing.any())
         if grew:
-            self._insert(np.unique(keys[missing]))
+            new = np.unique(keys[missing])
+            if self._rings is not None:
+                new = np.union1d(new, self._neighbour_keys(new))
+                new = new[self.keys[np.minimum(np.searchsorted(self.keys, new), self.nnz - 1)] != new]
+            self._insert(new)
             slots = np.searchsorted(self.keys, keys)
         return slots, vals, grew
+
+    def _neighbour_keys(self, keys: np.ndarray) -> np.ndarray:
+        """Upper DOF keys of every vertex pair (a', b'), a' near a, b' near b, for the pairs in keys."""
+        nv = self.ndof // 3
+        va, vb = (keys // self.ndof) // 3, (keys % self.ndof) // 3
+        pairs = sp.csr_matrix((np.ones(len(va)), (va, vb)), shape=(nv, nv))
+        grown = (self._rings @ pairs @ self._rings.T).tocoo()
+        a = np.minimum(grown.row, grown.col).astype(np.int64)
+        b = np.maximum(grown.row, grown.col).astype(np.int64)
+        r = (3 * a[:, None] + np.arange(3))[:, :, None]
+        c = (3 * b[:, None] + np.arange(3))[:, None, :]
+        r, c = np.broadcast_arrays(r, c)
+        r, c = r.ravel(), c.ravel()
+        upper = r <= c
+        return np.unique(r[upper] * self.ndof + c[upper])
 
     def assemble(self, element_hessians: list[np.ndarray], scale: float, diagonal: np.ndarray,
                  contact: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:

@@ -104,7 +104,7 @@ class ClothSimulator:
 
         self._tri_dofs = element_dofs(tri)
         self._hinge_dofs = element_dofs(self._hinges)
-        self._pattern = HessianPattern(self.ndof, [self._tri_dofs, self._hinge_dofs])
+        self._pattern = HessianPattern(self.ndof, [self._tri_dofs, self._hinge_dofs], tri, cfg.pattern_growth_rings)
         self._pattern_version = -1  # pattern version the solver has analysed
         xi = material.thickness if cfg.xi is None else cfg.xi
         dhat = material.thickness if cfg.dhat is None else cfg.dhat
