@@ -26,8 +26,6 @@ OLD_NAME = re.compile(r"(?<![A-Za-z0-9_])SPEC(?![A-Za-z0-9_])")
 PENDING: dict[str, int] = {
     "clothfold_ros/nodes/cloth_sim_node.py": 2,
     "clothfold_ros/nodes/params.py": 1,
-    "clothfold_ros/sim/config.py": 1,
-    "clothfold_ros/sim/runner.py": 1,
 }
 
 

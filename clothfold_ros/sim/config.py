@@ -1,4 +1,4 @@
-"""Solver settings of the IPC cloth simulator (SPEC section 3)."""
+"""Solver settings of the IPC cloth simulator (docs/method.md section 3)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -16,7 +16,7 @@ from .simulator import ClothSimulator, SimulationFailure, StepStats
 
 
 def flat_start(garment: Garment, material: Material) -> np.ndarray:
-    """The garment's vertices lying flat at z = 2 t (SPEC section 1)."""
+    """The garment's vertices lying flat at z = 2 t (docs/method.md section 1)."""
     x = np.array(garment.vertices, dtype=float)
     x[:, 2] = 2.0 * material.thickness
     return x
