@@ -12,6 +12,8 @@ rotated by up to --max-rot deg and shifted by up to --max-offset m; the camera
   per stage, each estimated with the folds done and the previous stage's estimate as prior
   (as keypoint_node does);
 - time per estimate (process CPU time, one thread) for a cloud of about --points points;
+- --simulated: the sequence folded by the IPC simulator (as far as it gets), each
+  simulated state's estimate against its visible keypoints;
 - --pipeline: `clothfold demo`'s fold (sim backend) with keypoints from the point cloud and
   from the cloth state (ground truth), loss of each.
 
@@ -155,6 +157,42 @@ def bench_folded(args, cam, rng) -> None:
         print(f"\nfolded, all stages: median {np.median(e):.1f} mm, p95 {np.percentile(e, 95):.1f} mm")
 
 
+def bench_simulated(args, rng) -> None:
+    """The sequence on the IPC simulator (shape 1, cotton, mu 0.5, (h, tilt) = (0.723, 30),
+    args.sim_area), each stage planned from the simulated state's visible keypoints, until a
+    fold fails; the estimate of each folded state against its visible keypoints."""
+    from clothfold_ros.materials import material
+    from clothfold_ros.sim.runner import flat_start, run_fold
+
+    cotton = material("cotton")
+    g = make_shirt(1, max_area=args.sim_area)
+    cam = DepthCamera(noise=args.noise, dropout=args.dropout)
+    v = flat_start(g, cotton)
+    base, specs = v.copy(), []
+    prior = estimate_keypoints(cam.cloud(v, g.triangles, rng))
+    print(f"\n## simulated sequence (shape 1, {len(g.triangles)} triangles, (0.723, 30))")
+    for name in FOLD_SEQUENCE:
+        spec = fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs])
+        tic = time.monotonic()
+        out = run_fold(g, spec, cotton, 0.5, 0.723, 30.0, vertices=v, target_base=base)
+        if not out.success:
+            print(f"{name}: the simulated fold failed ({out.reason}); stopping after {time.monotonic() - tic:.0f} s")
+            return
+        specs.append(spec)
+        v, base = out.vertices, out.target
+        truth = visible_keypoints(g, v, specs)
+        try:
+            est = estimate_keypoints(cam.cloud(v, g.triangles, rng), folds=[s.name for s in specs], prior=prior)
+        except PerceptionError as err:
+            print(f"{name}: fold loss {out.loss * 1e3:.1f} mm; estimate failed: {type(err).__name__}: {err}")
+            return
+        prior = est
+        e = errors_mm(est.keypoints, truth)
+        worst = KEYPOINT_NAMES[int(np.argmax(e))]
+        print(f"{name}: fold loss {out.loss * 1e3:.1f} mm; keypoint error median {np.median(e):.1f} mm, "
+              f"max {e.max():.1f} mm ({worst}); residual {est.residual * 1e3:.1f} mm")
+
+
 def bench_time(args, rng) -> None:
     g = make_shirt(1, max_area=args.max_area)
     area = g.to_trimesh().area
@@ -206,6 +244,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--points", type=int, default=20000, help="cloud size for the timing")
     p.add_argument("--repeat", type=int, default=10)
     p.add_argument("--pipeline", action="store_true", help="also the demo fold with perceived vs true keypoints")
+    p.add_argument("--simulated", action="store_true", help="also the sequence folded by the IPC simulator")
+    p.add_argument("--sim-area", type=float, default=5e-4, help="mesh max triangle area (m^2) for --simulated")
     p.add_argument("--verbose", action="store_true")
     args = p.parse_args(argv)
     rng = np.random.default_rng(args.seed)
@@ -217,6 +257,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.folded:
         bench_folded(args, cam, rng)
     bench_time(args, rng)
+    if args.simulated:
+        bench_simulated(args, rng)
     if args.pipeline:
         bench_pipeline(args)
     return 0

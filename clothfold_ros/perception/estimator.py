@@ -46,9 +46,12 @@ SHAPE_BOUNDS = {
     "sleeve_width_end": (0.12, 0.24), "sleeve_length": (0.03, 1.05), "sleeve_angle_deg": (-15.0, 65.0),
     "scale": (0.3, 1.2),
 }
+OUTSIDE_WEIGHT = 1.0  # weight of model outline outside the cloth against observed outline missed by the model
 START_SLEEVES = ((0.76, -3.0), (0.76, 25.0), (0.76, 50.0), (0.4, 10.0), (0.4, 45.0), (0.15, 10.0))  # length, deg
 FOLD_ANGLE_RANGE = math.radians(15.0)  # fitted fold line angle within +- this of the planned one
 FOLD_OFFSET_RANGE = 0.06  # m, fitted fold line offset within +- this of the planned one
+MAX_CREASE = 0.05  # m, the visible crease lies at most this far inside the fold line (the bulge)
+FOLD_PARAMS = 3  # per fitted fold: angle and offset about the planned line, crease
 # a fold line FOLD_PRIOR_ANGLE rad or FOLD_PRIOR_OFFSET m off the planned one costs as much as
 # one outline point FOLD_PRIOR_WEIGHT m off the model
 FOLD_PRIOR_ANGLE, FOLD_PRIOR_OFFSET, FOLD_PRIOR_WEIGHT = 0.1, 0.02, 0.003
@@ -309,53 +312,63 @@ class _Model:
         return out
 
     def split(self, x: np.ndarray):
+        """(shape values, pose (3,), fold parameters (K, 3)) of a parameter vector."""
         i = 0
         shape = self.shape0
         if self.free_shape:
             shape = x[:len(SHAPE_FIELDS)]
             i = len(SHAPE_FIELDS)
         pose = x[i:i + 3]
-        f = x[i + 3:].reshape(-1, 2)
+        f = x[i + 3:].reshape(-1, FOLD_PARAMS)
         return shape, pose, f
 
     def lines(self, f: np.ndarray) -> list[FoldLine]:
-        """Fold lines in the shirt frame for the fold parameters (K, 2) = (d angle rad, d offset m)."""
+        """Fold lines in the shirt frame for the fold parameters (K, 3) = (d angle rad,
+        d offset m, crease m) about the planned lines; the earlier, fixed ones first."""
         out = list(self.fixed)
-        for (p, a, s), (da, dn), name in zip(self.nominal, f, self.names[len(self.fixed):]):
+        for (p, a, s), (da, dn, crease), name in zip(self.nominal, f, self.names[len(self.fixed):]):
             ln = _line(p, a + da, s)
-            out.append(FoldLine(name, p + dn * ln.normal, ln.normal))
+            out.append(FoldLine(name, p + dn * ln.normal, ln.normal, float(crease)))
         return out
 
     def samples(self, x: np.ndarray):
         """(points (M, 2) table frame, segment start ids, segment end ids) of the folded model:
-        flat outline samples and, per fold, its crease (the fold line across the cloth as it
-        lay then), mirrored fold by fold; segments cut by a fold are dropped."""
+        flat outline samples and, per fold, its crease (the visible fold edge across the
+        cloth as it lay then), mirrored fold by fold across the fold lines; cloth between a
+        crease and its line (the fold's bulge) and segments cut by a fold are dropped."""
         shape, pose, f = self.split(x)
         o = model_outline(shape)
         a = o[self.edge]
         pts = a + self.u[:, None] * (o[self.edge_next] - a)
         sa, sb = self.sa0, self.sb0
-        sig = np.zeros(len(pts), np.int64)  # bit k: moved by fold k
+        sig = np.zeros(len(pts), np.int64)  # bit k: moved by fold k; bit 62: taken up by a bulge
+        hidden = np.int64(1) << 62
         for k, ln in enumerate(self.lines(f)):
             q, n = ln.point, ln.normal
             s = (pts - q) @ n
-            cross = (sig[sa] == sig[sb]) & ((s[sa] > 0) != (s[sb] > 0))
+            sc = s + ln.crease  # from the crease
+            cross = (sig[sa] == sig[sb]) & ((sc[sa] > 0) != (sc[sb] > 0))
             if np.count_nonzero(cross) >= 2:
                 i, j = sa[cross], sb[cross]
-                t = s[i] / (s[i] - s[j])
+                t = sc[i] / (sc[i] - sc[j])
                 d = np.array([-n[1], n[0]])
-                along = (pts[i] + t[:, None] * (pts[j] - pts[i]) - q) @ d
-                crease = q + d * (along.min() + self.crease_u[:, None] * (along.max() - along.min()))
+                qc = q - ln.crease * n
+                along = (pts[i] + t[:, None] * (pts[j] - pts[i]) - qc) @ d
+                crease = qc + d * (along.min() + self.crease_u[:, None] * (along.max() - along.min()))
                 idx = np.arange(len(pts), len(pts) + len(crease))
                 pts = np.vstack([pts, crease])
                 sig = np.r_[sig, np.zeros(len(crease), np.int64)]
-                s = np.r_[s, np.zeros(len(crease))]
+                s = np.r_[s, np.full(len(crease), -ln.crease)]
+                sc = np.r_[sc, np.zeros(len(crease))]
                 sa, sb = np.r_[sa, idx[:-1]], np.r_[sb, idx[1:]]
             m = s > 1e-9
             pts[m] -= 2 * s[m, None] * n
-            sig[m] |= 1 << k
-        ok = sig[sa] == sig[sb]
-        return pts @ _rot(pose[2]).T + pose[:2], sa[ok], sb[ok]
+            sig[m] |= np.int64(1) << k
+            sig[(sc > 1e-9) & ~m] |= hidden
+        ok = (sig[sa] == sig[sb]) & (sig[sa] & hidden == 0)
+        keep = sig & hidden == 0
+        new = np.cumsum(keep) - 1
+        return pts[keep] @ _rot(pose[2]).T + pose[:2], new[sa[ok]], new[sb[ok]]
 
 
 def _candidates(contour: np.ndarray, pts: np.ndarray, sa: np.ndarray, sb: np.ndarray):
@@ -447,7 +460,7 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
         if names[:len(prior_names)] == prior_names:
             r_inv = _rot(-prior.pose[2])
             t = np.asarray(prior.pose[:2])
-            fixed = [FoldLine(ln.name, r_inv @ (ln.point - t), r_inv @ ln.normal) for ln in prior.folds]
+            fixed = [FoldLine(ln.name, r_inv @ (ln.point - t), r_inv @ ln.normal, ln.crease) for ln in prior.folds]
     free_shape = not names or shape_prior is None
     lo_s = np.array([SHAPE_BOUNDS[k][0] for k in SHAPE_FIELDS])
     hi_s = np.array([SHAPE_BOUNDS[k][1] for k in SHAPE_FIELDS])
@@ -462,8 +475,8 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
             v[-1] *= math.sqrt(view.area / shapely.Polygon(model_outline(v)).area)
             shapes.append(np.clip(v, lo_s + 1e-6, hi_s - 1e-6))
     n_f = len(names) - len(fixed)
-    f_lo = np.tile([-FOLD_ANGLE_RANGE, -FOLD_OFFSET_RANGE], n_f)
-    f_hi = -f_lo
+    f_lo = np.tile([-FOLD_ANGLE_RANGE, -FOLD_OFFSET_RANGE, 0.0], n_f)
+    f_hi = np.tile([FOLD_ANGLE_RANGE, FOLD_OFFSET_RANGE, MAX_CREASE], n_f)
 
     def residuals(x: np.ndarray, mdl: _Model, assoc=None) -> np.ndarray:
         """Outline distances (C,), model points outside the cloth (M,), fold line prior (2K,).
@@ -474,9 +487,9 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
         else:
             r1 = _candidate_distances(contour, pts, assoc[0], assoc[1])
         r2 = np.zeros(mdl.max_points)  # fixed length: a crease may vanish (its line off the cloth)
-        r2[:len(pts)] = view.distance_outside(pts) * math.sqrt(len(contour) / mdl.max_points)
+        r2[:len(pts)] = view.distance_outside(pts) * (OUTSIDE_WEIGHT * math.sqrt(len(contour) / mdl.max_points))
         # weak pull of the fitted fold lines toward the planned ones (where a crease is hidden)
-        r3 = FOLD_PRIOR_WEIGHT * (mdl.split(x)[2] / [FOLD_PRIOR_ANGLE, FOLD_PRIOR_OFFSET]).ravel()
+        r3 = FOLD_PRIOR_WEIGHT * (mdl.split(x)[2] / [FOLD_PRIOR_ANGLE, FOLD_PRIOR_OFFSET, FOLD_PRIOR_OFFSET]).ravel()
         return np.concatenate([r1, r2, r3])
 
     def jacobian(x: np.ndarray, mdl: _Model, steps: np.ndarray) -> np.ndarray:
@@ -505,12 +518,12 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
             poses = [np.asarray(pose_prior, float)]
         else:
             folded_area, _ = _fold_xy(_area_points(model_outline(shape0)),
-                                      [(ln.point, ln.normal) for ln in coarse.lines(np.zeros((n_f, 2)))])
+                                      [(ln.point, ln.normal) for ln in coarse.lines(np.zeros((n_f, FOLD_PARAMS)))])
             cmod, yaw_mod = _moments(folded_area)
             poses = [np.r_[cm - _rot(yaw) @ cmod, yaw]
                      for yaw in (yaw_m - yaw_mod + k * math.pi / 2 for k in range(4))]
         for p0 in poses:
-            r = residuals(np.r_[p0, np.zeros(2 * n_f)], coarse)
+            r = residuals(np.r_[p0, np.zeros(FOLD_PARAMS * n_f)], coarse)
             starts.append((float(np.sum(np.sqrt(1.0 + (r / 0.01) ** 2) - 1.0)), len(starts), shape0, p0))
     starts.sort(key=lambda t: t[:2])
 
@@ -518,8 +531,8 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
         model = _Model(shape0, names, free_shape, spacing=config.spacing, fixed=fixed)
         lo = pack(lo_s, np.r_[p0[:2] - 0.3, p0[2] - math.pi], f_lo)
         hi = pack(hi_s, np.r_[p0[:2] + 0.3, p0[2] + math.pi], f_hi)
-        x_scale = pack(np.r_[[0.05] * 8, 5.0, 0.05], [0.02, 0.02, 0.05], np.tile([0.05, 0.02], n_f))
-        x0 = np.clip(pack(shape0, p0, np.zeros((n_f, 2))), lo + 1e-9, hi - 1e-9)
+        x_scale = pack(np.r_[[0.05] * 8, 5.0, 0.05], [0.02, 0.02, 0.05], np.tile([0.05, 0.02, 0.01], n_f))
+        x0 = np.clip(pack(shape0, p0, np.tile([0.0, 0.0, 0.002], (n_f, 1))), lo + 1e-9, hi - 1e-9)
         steps = 1e-4 * x_scale
         fit = least_squares(residuals, x0, jac=lambda x, mdl: jacobian(x, mdl, steps), args=(model,),
                             bounds=(lo, hi), loss="soft_l1", f_scale=0.005,
@@ -548,7 +561,7 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
     r = _rot(pose[2])
     lines_shirt = model.lines(f)
     kp2 = ideal_visible_keypoints(model_outline(shape_v), lines_shirt) @ r.T + pose[:2]
-    lines = [FoldLine(ln.name, r @ ln.point + pose[:2], r @ ln.normal) for ln in lines_shirt]
+    lines = [FoldLine(ln.name, r @ ln.point + pose[:2], r @ ln.normal, ln.crease) for ln in lines_shirt]
     keypoints = _with_height(kp2, cloth)
     yaw = math.atan2(math.sin(pose[2]), math.cos(pose[2]))
     est = KeypointEstimate(keypoints, shape, (float(pose[0]), float(pose[1]), yaw), lines, resid, pts,

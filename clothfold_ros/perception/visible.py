@@ -14,6 +14,9 @@ A flat shirt's keypoints are its material points (`Garment.keypoints`). Each fol
 | side | sleeve keypoints | the material point |
 | middle | every keypoint | the material point (the hem now lies on top) |
 
+For a fold whose visible crease lies inside its line (`FoldLine.crease`, fitted on real
+folds), the crease constructions use the crease; the mirroring uses the line.
+
 Each visible keypoint is a material point of the cloth (a location on the flat shirt,
 `keypoint_locations`); on a mesh its position is where that cloth point is now, fitted
 from nearby vertices that the folds moved the same way, so it is exact on ideally folded
@@ -37,11 +40,15 @@ _IDX = {n: i for i, n in enumerate(KEYPOINT_NAMES)}
 @dataclass(frozen=True)
 class FoldLine:
     """A done fold in the plane: name (folding.FOLD_NAMES), a point on the line (2,) m and
-    the unit normal (2,) toward the grippers' side (the side that was folded over)."""
+    the unit normal (2,) toward the grippers' side (the side that was folded over: it is
+    mirrored across the line). crease (m, >= 0): the visible fold edge lies this far from
+    the line toward the unfolded side (a real fold's bulge takes up the cloth in between);
+    0 for an ideal fold."""
 
     name: str
     point: np.ndarray
     normal: np.ndarray
+    crease: float = 0.0
 
     @staticmethod
     def of(fold: "FoldLine | FoldSpec") -> "FoldLine":
@@ -58,6 +65,11 @@ class FoldLine:
     def side(self, xy: np.ndarray) -> np.ndarray:
         """Signed distance (m) of points (..., 2) from the line, > 0 on the folded side."""
         return (np.asarray(xy, float)[..., :2] - self.point) @ self.normal
+
+    @property
+    def crease_line(self) -> "FoldLine":
+        """The visible fold edge as a line (same normal)."""
+        return FoldLine(self.name, self.point - self.crease * self.normal, self.normal)
 
 
 def fold_lines(folds: Sequence["FoldLine | FoldSpec"]) -> list[FoldLine]:
@@ -125,7 +137,8 @@ def keypoint_locations(outline: np.ndarray, folds: Sequence["FoldLine | FoldSpec
             continue
         prev = lines[:k]
         cur = apply_folds(loc, prev)
-        s = f.side(cur)
+        edge = f.crease_line
+        s = edge.side(cur)
         side = f.name.split("_")[0]
         for i, name in enumerate(KEYPOINT_NAMES):
             if s[i] <= SIDE_TOL or name.startswith("sleeve_"):
@@ -133,7 +146,7 @@ def keypoint_locations(outline: np.ndarray, folds: Sequence["FoldLine | FoldSpec
             q = None
             if f.kind == "sleeve" and name in (f"shoulder_{side}", f"neck_{side}"):
                 path = [name, f"neck_{side}", "neck_middle"] if name.startswith("shoulder") else [name, "neck_middle"]
-                q = _first_crossing(apply_folds(outline[[_IDX[n] for n in path]], prev), f)
+                q = _first_crossing(apply_folds(outline[[_IDX[n] for n in path]], prev), edge)
             if q is None:
                 q = cur[i] - s[i] * f.normal  # projection onto the crease
             loc[i] = _untrack(q, prev, outline)
