@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 from clothfold_ros.folding import FOLD_SEQUENCE, fold_spec
 from clothfold_ros.garment import KEYPOINT_NAMES, SHAPES, make_shirt, shirt_outline
 from clothfold_ros.loss import fold_target
-from clothfold_ros.perception.visible import keypoint_locations, visible_keypoints
+from clothfold_ros.perception.visible import FoldLine, keypoint_locations, visible_keypoints
 
 T = 3e-4  # m, thickness used for the layer offsets
 
@@ -166,3 +166,21 @@ def test_bad_inputs():
         keypoint_locations(np.zeros((5, 2)), [])
     with pytest.raises(TypeError):
         visible_keypoints(g, None, ["left_sleeve"])
+
+
+def test_a_crease_inside_the_fold_line_moves_the_crease_keypoints_only():
+    """A real fold's visible edge can lie inside its line (the bulge): crease-made keypoints
+    (hem corner, armpit) follow the crease, mirrored ones (the cuff) follow the line."""
+    g = make_shirt(1, max_area=2e-3)
+    outline = g.vertices[:13, :2]
+    spec = fold_spec("left_side", g.keypoints())
+    ideal = FoldLine.of(spec)
+    bulged = FoldLine(ideal.name, ideal.point, ideal.normal, crease=0.02)
+    a, b = keypoint_locations(outline, [ideal]), keypoint_locations(outline, [bulged])
+    edge = ideal.point[0] + 0.02  # the crease's x (the left side folds over to +x)
+    for k, n in enumerate(KEYPOINT_NAMES):
+        if n.startswith("sleeve_") or outline[k, 0] > edge:  # mirrored or untouched: as for the ideal fold
+            np.testing.assert_allclose(b[k], a[k], atol=1e-12)
+        else:  # bottom, armpit, shoulder, neck of the left side: on the crease, at their height
+            np.testing.assert_allclose(b[k], [edge, outline[k, 1]], atol=1e-12)
+    assert {"bottom_left", "armpit_left"} <= {n for k, n in enumerate(KEYPOINT_NAMES) if b[k, 0] == edge}
