@@ -20,8 +20,7 @@ class SimConfig:
     max_line_search_halvings: int = 30
     grasp_stiffness: float = 6e7  # N/m per kg of held cloth (1/s^2): spring from cloth to grip point
     grasp_slip: float = 2e-3  # m: held cloth farther than this from its grip point slips in the grip
-    psd_projection: str = "clamp"  # "clamp", "abs" (negative membrane eigenvalues set to 0 or |.|) or "adaptive"
-    trust_ratio: float = 0.01  # adaptive: |.| after an iteration whose actual/predicted decrease was below this
+    psd_projection: str = "clamp"  # "clamp" or "abs": negative membrane eigenvalues set to 0 or |.|
     pattern_growth_rings: int = 1  # a new contact pair also adds its neighbours' pairs (rings) to the pattern
     linear_solver: str = "auto"  # "pardiso", "superlu" or "auto" (PARDISO when MKL is there)
     xi: float | None = None  # m, minimum mid-surface separation (offset)

@@ -55,7 +55,7 @@ def _sym2_eig(a, b, d):
 
 
 @nb.njit(cache=True)
-def _element(x, b, vol, lam, mu, project, grad, hess):
+def _element(x, b, vol, lam, mu, project, grad, hess, want_hess=True):
     """Energy (J) of one triangle; writes its gradient (9,) and projected Hessian (9, 9).
 
     The 6x6 Hessian in F has a closed-form eigensystem for an isotropic energy of a 3x2
@@ -89,6 +89,8 @@ def _element(x, b, vol, lam, mu, project, grad, hess):
     for a in range(3):
         for r in range(3):
             grad[3 * a + r] = vol * (p[r, 0] * b[a, 0] + p[r, 1] * b[a, 1])
+    if not want_hess:
+        return energy
     # Thin SVD of F from C = V diag(s^2) V^T.
     e1, e2, vc, vs = _sym2_eig(c00, c01, c11)
     s1 = np.sqrt(e1)
@@ -174,15 +176,17 @@ def membrane_energy(x, triangles, b, vol, lam, mu):
 
 
 @nb.njit(cache=True, parallel=True)
-def membrane_derivatives(x, triangles, b, vol, lam, mu, project=PROJECT_CLAMP):
-    """Energy (J), per-element gradients (M, 9) and PSD-projected Hessians (M, 9, 9)."""
+def membrane_derivatives(x, triangles, b, vol, lam, mu, project=PROJECT_CLAMP, want_hess=True):
+    """Energy (J), per-element gradients (M, 9) and PSD-projected Hessians (M, 9, 9)
+    (zeros when want_hess is False)."""
     n = triangles.shape[0]
     grads = np.empty((n, 9))
-    hessians = np.empty((n, 9, 9))
+    hessians = np.empty((n, 9, 9)) if want_hess else np.zeros((n, 0, 0))
     energies = np.empty(n)
     for m in nb.prange(n):
         xe = np.empty((3, 3))
         for a in range(3):
             xe[a] = x[triangles[m, a]]
-        energies[m] = _element(xe, b[m], vol[m], lam, mu, project, grads[m], hessians[m])
+        h = hessians[m] if want_hess else np.empty((9, 9))
+        energies[m] = _element(xe, b[m], vol[m], lam, mu, project, grads[m], h, want_hess)
     return energies.sum(), grads, hessians

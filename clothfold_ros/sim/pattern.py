@@ -82,9 +82,9 @@ class HessianPattern:
     def _rebuild(self, keys: np.ndarray) -> None:
         self.keys = keys
         self.nnz = len(keys)
-        rows = keys // self.ndof
+        self.rows = (keys // self.ndof).astype(np.int32)
         self.indices = (keys % self.ndof).astype(np.int32)
-        self.indptr = np.searchsorted(rows, np.arange(self.ndof + 1)).astype(np.int32)
+        self.indptr = np.searchsorted(self.rows, np.arange(self.ndof + 1)).astype(np.int32)
         self.diag_slots = np.searchsorted(keys, np.arange(self.ndof, dtype=np.int64) * (self.ndof + 1))
         self.block_slots = []
         for dofs in self._blocks:
@@ -100,9 +100,9 @@ class HessianPattern:
         old_to_new = np.arange(self.nnz) + shift
         self.keys = np.insert(self.keys, np.searchsorted(self.keys, new_keys), new_keys)
         self.nnz = len(self.keys)
-        rows = self.keys // self.ndof
+        self.rows = (self.keys // self.ndof).astype(np.int32)
         self.indices = (self.keys % self.ndof).astype(np.int32)
-        self.indptr = np.searchsorted(rows, np.arange(self.ndof + 1)).astype(np.int32)
+        self.indptr = np.searchsorted(self.rows, np.arange(self.ndof + 1)).astype(np.int32)
         self.diag_slots = old_to_new[self.diag_slots]
         for i, slots in enumerate(self.block_slots):
             self.block_slots[i] = np.where(slots >= 0, old_to_new[slots], -1)

@@ -106,6 +106,7 @@ class ClothSimulator:
         self._hinge_dofs = element_dofs(self._hinges)
         self._pattern = HessianPattern(self.ndof, [self._tri_dofs, self._hinge_dofs], tri, cfg.pattern_growth_rings)
         self._pattern_version = -1  # pattern version the solver has analysed
+        self.fallback_directions = 0  # Newton steps that fell back to the scaled gradient
         xi = material.thickness if cfg.xi is None else cfg.xi
         dhat = material.thickness if cfg.dhat is None else cfg.dhat
         self.contact = ContactModel(rest, tri, xi, dhat, friction, cfg.eps_v, cfg.dt, cfg.broad_phase_reuse)
@@ -113,7 +114,7 @@ class ClothSimulator:
         import ipctk
 
         self._solver = spd_solver(cfg.linear_solver)
-        self._project = membrane.PROJECT_ABS if cfg.psd_projection == "abs" else membrane.PROJECT_CLAMP  # adaptive: per iteration
+        self._project = membrane.PROJECT_ABS if cfg.psd_projection == "abs" else membrane.PROJECT_CLAMP
         self.contact.psd = ipctk.PSDProjectionMethod.ABS if cfg.psd_projection == "abs" else ipctk.PSDProjectionMethod.CLAMP
 
         ipctk.set_num_threads(cfg.threads)
@@ -145,7 +146,7 @@ class ClothSimulator:
     def _elastic(self, x: np.ndarray, want_hess: bool = True):
         """Elastic energy (J), per-element gradients and PSD Hessians (membrane, bending)."""
         em, gm, hm = membrane.membrane_derivatives(x, self.triangles, self._shape, self._volume, self._lam,
-                                                   self._mu, self._project)
+                                                   self._mu, self._project, want_hess)
         eb, gb, hb = bending.bending_derivatives(
             x, self._hinges, self._theta_rest, self._hinge_weight, self._k_bend, want_hess
         )
@@ -271,6 +272,34 @@ class ClothSimulator:
                 slipped += int(slip.sum())
         return lag_max, slipped
 
+    def _direction(self, data: np.ndarray, grad: np.ndarray, when: str) -> np.ndarray:
+        """Newton direction -H^-1 grad for the Hessian values `data` on the pattern.
+
+        The system is scaled symmetrically by its diagonal first: barrier entries near
+        contact exceed the mass entries by many orders of magnitude, and unscaled the
+        factorization loses so much accuracy there that the "descent" direction can point
+        uphill. If it still does, the step falls back to the diagonally scaled gradient.
+        """
+        pat = self._pattern
+        if self._pattern_version != (id(pat), pat.version):
+            self._solver.set_pattern(pat.indptr, pat.indices)
+            self._pattern_version = (id(pat), pat.version)
+        d = data[pat.diag_slots]
+        if not np.all(d > 0) or not np.all(np.isfinite(data)):
+            raise SimulationFailure(f"{when}: Newton matrix has a non-positive or non-finite diagonal")
+        scale = 1.0 / np.sqrt(d)
+        try:
+            self._solver.factor(data * scale[pat.rows] * scale[pat.indices])
+            p = scale * self._solver.solve(-scale * grad)
+        except np.linalg.LinAlgError as err:
+            raise SimulationFailure(f"{when}: linear solve failed: {err}") from err
+        if not np.all(np.isfinite(p)):
+            raise SimulationFailure(f"{when}: Newton direction is not finite")
+        if float(grad @ p) >= 0.0:
+            self.fallback_directions += 1
+            p = -grad / d
+        return p.reshape(-1, 3)
+
     def _newton(self, x, x_prev, x_hat, phases, when, pull=None):
         """Projected Newton on all vertices; returns (x, iterations, halvings, residual, collisions).
 
@@ -285,9 +314,6 @@ class ClothSimulator:
         prev_min = np.inf
         col = None  # collisions at x, carried over from the line search
         diag = self._mass_dof if pull is None else self._mass_dof + np.repeat(pull[0], 3)
-        adaptive = cfg.psd_projection == "adaptive"
-        if adaptive:
-            self._project = membrane.PROJECT_CLAMP
         for it in range(1, cfg.max_newton_iterations + 1):
             if col is None:
                 tic = time.perf_counter()
@@ -305,8 +331,8 @@ class ClothSimulator:
             if pull is not None:
                 grad += np.repeat(pull[0], 3) * (x - pull[1]).ravel()
             grad += self.contact.gradient(col, x, u)
-            hc = self.contact.hessian(col, x, u)
             contact = None
+            hc = self.contact.hessian(col, x, u)
             if hc is not None:
                 slots, vals, _ = self._pattern.contact_slots(hc)
                 contact = (slots, vals)
@@ -315,18 +341,8 @@ class ClothSimulator:
             data = self._pattern.assemble([hm, hb], h2, diag, contact)
             phases["assembly"] += time.perf_counter() - tic
             tic = time.perf_counter()
-            if self._pattern_version != (id(self._pattern), self._pattern.version):
-                self._solver.set_pattern(self._pattern.indptr, self._pattern.indices)
-                self._pattern_version = (id(self._pattern), self._pattern.version)
-            try:
-                self._solver.factor(data)
-                p = self._solver.solve(-grad)
-            except np.linalg.LinAlgError as err:
-                raise SimulationFailure(f"{when}: linear solve failed: {err}") from err
+            p = self._direction(data, grad, when)
             phases["linear_solve"] += time.perf_counter() - tic
-            if not np.all(np.isfinite(p)):
-                raise SimulationFailure(f"{when}: Newton direction is not finite")
-            p = p.reshape(-1, 3)
             residual = float(np.sqrt(np.mean(np.sum(p**2, axis=1)))) / h
             residuals.append(residual)
             if len(residuals) >= cfg.newton_window and max(residuals[-cfg.newton_window :]) <= cfg.newton_tol:
@@ -350,14 +366,12 @@ class ClothSimulator:
                 alpha *= 0.5
                 halvings += 1
                 if alpha < 0.5**cfg.max_line_search_halvings:
-                    raise SimulationFailure(f"{when}: line search stalled (Newton iteration {it})")
+                    d0 = self.contact.min_distance(self.contact.build(x, cand), x)
+                    raise SimulationFailure(
+                        f"{when}: line search stalled (Newton iteration {it}; slope {float(grad @ p.ravel()):.3g} J, "
+                        f"closest contact {d0 * 1000:.4f} mm, offset {self.contact.xi * 1000:.4f} mm, "
+                        f"residual {residual:.3g} m/s)")
             phases["line_search"] += time.perf_counter() - tic
-            if adaptive:  # trust-region fit of the quadratic model picks the next projection
-                gp = float(grad @ p.ravel())
-                predicted = -alpha * gp * (1.0 - 0.5 * alpha)
-                actual = e0 - e_trial
-                rho = actual / predicted if predicted > 0 else 1.0
-                self._project = membrane.PROJECT_ABS if rho < cfg.trust_ratio else membrane.PROJECT_CLAMP
             x = trial
             col = col_t
             min_d = self.contact.min_distance(col_t, x)
