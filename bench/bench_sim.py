@@ -1,68 +1,171 @@
-"""Simulator benchmark: the default left-sleeve fold (h 0.45, tilt 51.4 deg, T 4 s).
+"""Simulator benchmark: the default left-sleeve fold, against a tight reference and today's solver.
 
-Prints, per resolution, wall time per simulated second, Newton iterations per step and
-the split of time by solver phase, plus two ratios measured in this same run:
-  * fold time / machine baseline (a fixed dense LU of 1500x1500, repeated), so runs on
-    different machines compare;
-  * fold time / target (30 s at ~3K triangles, 180 s at ~12K on 2 cores).
+For each resolution (max triangle area) it runs, each in its own process:
+  * fast:      the default settings at the exact fan point (h 0.4462, tilt 51.43 deg);
+  * reference: the same fold with the Newton tolerance 100x tighter (settings printed);
+  * baseline:  the solver of an earlier commit (default a11945f, checked out into a
+               temporary `git worktree`, run with this venv) and the current one at the
+               point that solver completes (h 0.45, tilt 51.4), for the speed ratio.
+It prints wall time, Newton iterations per step, the phase split, the loss of fast and
+reference and the mean / max per-vertex distance between their final meshes, and the
+ratios to the baseline and to the targets (20 s at ~3K triangles, 90 s at ~12K).
+`--fan N` also runs N fan points (spread over h and tilt) fast and tight at
+`--fan-area` and prints the Spearman rank correlation of their losses.
 
-    python bench/bench_sim.py [--areas 2e-4 5e-5] [--duration 4]
+    python bench/bench_sim.py [--areas 2e-4 5e-5] [--baseline a11945f | --no-baseline]
+                              [--no-reference] [--fan 8 --fan-area 5e-4]
 """
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
+ROOT = Path(__file__).resolve().parents[1]
+TARGETS = {2e-4: 20.0, 5e-5: 90.0}  # s per 4-s fold on 2 cores (issue goals)
+FAN_POINT = (0.4462, 51.43)  # fan ring 5, the default fold of the study's figures
+BASELINE_POINT = (0.45, 51.4)  # the point the earlier solver completes at 3K
+TIGHTEN = 100.0
+
+# One fold in a fresh process; works with this tree and with the earlier commit's API.
+WORKER = r"""
+import json, sys, time, numpy as np
 from clothfold_ros.folding import fold_spec
 from clothfold_ros.garment import make_shirt
 from clothfold_ros.materials import material
+from clothfold_ros.sim.config import SimConfig
 from clothfold_ros.sim.report import phase_totals
 from clothfold_ros.sim.runner import flat_start, run_fold
+a = json.loads(sys.argv[1])
+cot = material("cotton")
+g = make_shirt(1, max_area=a["area"])
+spec = fold_spec("left_sleeve", g.keypoints(flat_start(g, cot)))
+cfg = SimConfig(newton_tol=a["tol"], max_newton_iterations=a["max_it"])
+small = make_shirt(1, max_area=1e-2)  # compile the numba kernels before the clock starts
+run_fold(small, fold_spec("left_sleeve", small.keypoints(flat_start(small, cot))), cot, 0.5, a["h"], a["tilt"], 0.12, config=cfg)
+t0 = time.perf_counter()
+out = run_fold(g, spec, cot, 0.5, a["h"], a["tilt"], 4.0, config=cfg)
+wall = time.perf_counter() - t0
+np.save(a["final"], out.vertices)
+print("RESULT " + json.dumps(dict(ok=out.success, reason=out.reason, loss=out.loss if out.success else None,
+      steps=out.steps, its=out.newton_iterations, wall=wall, triangles=len(g.triangles),
+      phases=phase_totals(out))))
+"""
 
-TARGETS = {2e-4: 30.0, 5e-5: 180.0}  # s per 4-s fold on 2 cores (the issue's goals)
+
+def run_worker(pythonpath: Path, area: float, h: float, tilt: float, tol: float, max_it: int, tmp: Path) -> dict:
+    final = tmp / f"final-{os.getpid()}-{time.monotonic_ns()}.npy"
+    env = dict(os.environ, PYTHONPATH=f"{pythonpath}:{os.environ.get('PYTHONPATH', '')}")
+    args = json.dumps(dict(area=area, h=h, tilt=tilt, tol=tol, max_it=max_it, final=str(final)))
+    proc = subprocess.run([sys.executable, "-c", WORKER, args], cwd=pythonpath, env=env, capture_output=True, text=True)
+    line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")), None)
+    if line is None:
+        raise RuntimeError(f"worker failed ({pythonpath}):\n{proc.stderr[-2000:]}")
+    res = json.loads(line[7:])
+    res["final"] = np.load(final)
+    return res
 
 
-def machine_baseline(repeats: int = 5) -> float:
-    """Median seconds of a fixed dense LU solve (1500 x 1500), a machine-speed yardstick."""
-    rng = np.random.default_rng(0)
-    a = rng.standard_normal((1500, 1500)) + 1500 * np.eye(1500)
-    b = rng.standard_normal(1500)
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        np.linalg.solve(a, b)
-        times.append(time.perf_counter() - t)
-    return float(np.median(times))
+def describe(tag: str, r: dict) -> str:
+    tot = sum(r["phases"].values()) or 1.0
+    split = ", ".join(f"{k} {100 * v / tot:.0f}%" for k, v in r["phases"].items())
+    state = f"loss {r['loss'] * 1000:.2f} mm" if r["ok"] else f"FAILED: {r['reason']}"
+    return (f"  {tag:<10} {state}; wall {r['wall']:.1f} s ({r['wall'] / 4.2:.1f} s per simulated s); "
+            f"Newton {r['its'] / max(r['steps'], 1):.1f} its/step ({r['its']} in {r['steps']} steps)\n"
+            f"             phases: {split}")
+
+
+def worktree(commit: str, tmp: Path) -> Path:
+    path = tmp / f"baseline-{commit}"
+    subprocess.run(["git", "worktree", "add", "--detach", str(path), commit], cwd=ROOT, check=True,
+                   capture_output=True)
+    return path
+
+
+def spearman(a: np.ndarray, b: np.ndarray) -> float:
+    from scipy.stats import spearmanr
+
+    return float(spearmanr(a, b).statistic)
+
+
+def fan_check(n: int, area: float, tol: float, tmp: Path) -> None:
+    from clothfold_ros.trajectory import fan
+
+    pts = fan()
+    idx = np.linspace(0, len(pts) - 1, n).round().astype(int)  # spread over rings (h) and tilts
+    print(f"\n== fan subset: {n} points at max area {area:g} m^2, tol {tol:g} vs {tol / TIGHTEN:g} m/s")
+    fast, ref = [], []
+    for i in idx:
+        h, tilt = (float(v) for v in pts[i])
+        f = run_worker(ROOT, area, h, tilt, tol, 80, tmp)
+        r = run_worker(ROOT, area, h, tilt, tol / TIGHTEN, 3000, tmp)
+        fl = f["loss"] * 1000 if f["ok"] else float("inf")
+        rl = r["loss"] * 1000 if r["ok"] else float("inf")
+        print(f"  fan {i:3d} (h {h:.3f}, tilt {tilt:4.1f}): fast {fl:7.2f} mm ({f['wall']:.0f} s)"
+              f"{'' if f['ok'] else ' FAILED ' + f['reason']}  reference {rl:7.2f} mm ({r['wall']:.0f} s)"
+              f"{'' if r['ok'] else ' FAILED ' + r['reason']}", flush=True)
+        fast.append(fl)
+        ref.append(rl)
+    fast_a, ref_a = np.array(fast), np.array(ref)
+    ok = np.isfinite(fast_a) & np.isfinite(ref_a)
+    print(f"  Spearman rank correlation fast vs reference: {spearman(fast_a[ok], ref_a[ok]):.3f} "
+          f"({ok.sum()} points both completed); |loss difference| mean {np.abs(fast_a - ref_a)[ok].mean():.2f} mm")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--areas", type=float, nargs="+", default=[2e-4, 5e-5], help="max triangle areas (m^2)")
-    ap.add_argument("--duration", type=float, default=4.0)
+    ap.add_argument("--baseline", default="a11945f", help="earlier commit to compare against")
+    ap.add_argument("--no-baseline", action="store_true")
+    ap.add_argument("--no-reference", action="store_true")
+    ap.add_argument("--fan", type=int, default=0, help="also check this many fan points against the reference")
+    ap.add_argument("--fan-area", type=float, default=5e-4)
     args = ap.parse_args()
-    base = machine_baseline()
-    print(f"machine baseline (dense LU 1500): {base * 1000:.1f} ms")
-    cotton = material("cotton")
-    for area in args.areas:
-        g = make_shirt(1, max_area=area)
-        spec = fold_spec("left_sleeve", g.keypoints(flat_start(g, cotton)))
-        t0 = time.perf_counter()
-        out = run_fold(g, spec, cotton, 0.5, 0.45, 51.4, args.duration)
-        wall = time.perf_counter() - t0
-        sim_time = args.duration + 0.2
-        its = out.newton_iterations / max(out.steps, 1)
-        print(f"\n== {len(g.triangles)} triangles ({len(g.vertices)} vertices), max area {area:g} m^2")
-        print(f"  result: {'ok' if out.success else 'FAILED ' + out.reason}; loss {out.loss * 1000:.2f} mm")
-        print(f"  wall {wall:.1f} s for {sim_time:.1f} s simulated = {wall / sim_time:.1f} s per simulated s")
-        print(f"  Newton iterations per step {its:.1f} ({out.newton_iterations} in {out.steps} steps)")
-        print(f"  ratio to machine baseline {wall / base:.0f}x")
-        if area in TARGETS:
-            print(f"  ratio to target ({TARGETS[area]:.0f} s): {wall / TARGETS[area]:.2f}")
-        tot = phase_totals(out)
-        s = sum(tot.values())
-        print("  time by phase: " + ", ".join(f"{k} {v:.1f} s ({100 * v / s:.0f}%)" for k, v in tot.items()))
+    sys.path.insert(0, str(ROOT))
+    from clothfold_ros.sim.config import SimConfig
+
+    cfg = SimConfig()
+    tol = cfg.newton_tol
+    print(f"default settings: {cfg}")
+    print(f"reference: the same with newton_tol = {tol / TIGHTEN:g} m/s, max_newton_iterations = 3000")
+    with tempfile.TemporaryDirectory(prefix="bench_sim_") as d:
+        tmp = Path(d)
+        base = None if args.no_baseline else worktree(args.baseline, tmp)
+        try:
+            for area in args.areas:
+                fast = run_worker(ROOT, area, *FAN_POINT, tol, cfg.max_newton_iterations, tmp)
+                print(f"\n== {fast['triangles']} triangles (max area {area:g} m^2), left sleeve, fan point "
+                      f"h {FAN_POINT[0]}, tilt {FAN_POINT[1]} deg", flush=True)
+                print(describe("fast", fast), flush=True)
+                if area in TARGETS:
+                    print(f"             ratio to target ({TARGETS[area]:.0f} s): {fast['wall'] / TARGETS[area]:.2f}")
+                if not args.no_reference:
+                    ref = run_worker(ROOT, area, *FAN_POINT, tol / TIGHTEN, 3000, tmp)
+                    print(describe("reference", ref), flush=True)
+                    if fast["ok"] and ref["ok"]:
+                        dist = np.linalg.norm(fast["final"] - ref["final"], axis=1)
+                        print(f"             fast - reference: loss {1000 * (fast['loss'] - ref['loss']):+.2f} mm; final meshes "
+                              f"{dist.mean() * 1000:.2f} mm mean, {dist.max() * 1000:.2f} mm max per vertex")
+                if base is not None:
+                    now = run_worker(ROOT, area, *BASELINE_POINT, tol, cfg.max_newton_iterations, tmp)
+                    old = run_worker(base, area, *BASELINE_POINT, tol, 80, tmp)
+                    print(f"  at h {BASELINE_POINT[0]}, tilt {BASELINE_POINT[1]} (completed by {args.baseline}):")
+                    print(describe("now", now))
+                    print(describe(args.baseline, old))
+                    print(f"             speed-up now vs {args.baseline}: {old['wall'] / now['wall']:.2f}x "
+                          f"(per Newton iteration {old['wall'] / old['its'] / (now['wall'] / now['its']):.2f}x)", flush=True)
+            if args.fan:
+                fan_check(args.fan, args.fan_area, tol, tmp)
+        finally:
+            if base is not None:
+                subprocess.run(["git", "worktree", "remove", "--force", str(base)], cwd=ROOT, capture_output=True)
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..sim.config import SimConfig
 from .scenario import scenario
 
 SETTINGS = "settings.json"
@@ -52,7 +53,7 @@ class SweepSettings:
     dt: float = 0.04
     settle_time: float = 0.2
     newton_tol: float = 1e-3
-    max_newton_iterations: int = 80
+    max_newton_iterations: int = SimConfig.max_newton_iterations
 
     def __post_init__(self) -> None:
         scenario(self.scenario)

@@ -33,6 +33,7 @@ from visualization_msgs.msg import Marker
 
 from .. import ros_conversions as rc
 from ..pose import Pose
+from ..sim.config import SimConfig
 from . import common, params
 from .backend import LockStepBackend
 from .params import Param
@@ -45,7 +46,7 @@ PARAMS = [
     Param("friction", 0.5, "friction coefficient of every contact (-)", range=(0.0, 2.0), read_only=True),
     Param("settle_time", 0.2, "settle time after release (s) when the fold spec gives none", range=(0.0, 10.0)),
     Param("newton_tol", 1e-3, "Newton stop: RMS(|dx|)/dt (m/s)", range=(1e-8, 1.0), read_only=True),
-    Param("max_newton_iterations", 80, "Newton iterations per step", range=(1, 10000), read_only=True),
+    Param("max_newton_iterations", SimConfig.max_newton_iterations, "Newton iterations per step", range=(1, 10000), read_only=True),
     Param("max_loss", 0.05, "a fold with a larger loss (m) is reported as failed", range=(0.0, 10.0)),
     Param("state_period", 0.5, "publish the cloth state/marker/points at most this often (wall s)",
           range=(0.0, 60.0)),
@@ -57,7 +58,6 @@ class ClothSimNode(LockStepBackend):
         super().__init__("cloth_sim_node", PARAMS)
         from ..garment import make_shirt
         from ..materials import material
-        from ..sim.config import SimConfig
         from ..sim.runner import flat_start
 
         self.garment = make_shirt(params.value(self, "shape"), max_area=params.value(self, "max_area"))

@@ -43,6 +43,7 @@ class ContactModel:
         self.narrow_phase = ipctk.AdditiveCCD()
         self.kappa = 0.0
         self.kappa_max = 0.0
+        self.kappa_gap = 1e-3 * self.dhat  # m: gap beyond xi under which a closing contact stiffens kappa
         self.barrier = ipctk.BarrierPotential(self.barrier_dhat, 1.0)
         self.bbox_diagonal = float(ipctk.world_bbox_diagonal_length(np.asfortranarray(rest)))
         self.collisions = ipctk.NormalCollisions()
@@ -113,11 +114,16 @@ class ContactModel:
         self.set_kappa(max(self.kappa, kappa))
 
     def update_kappa(self, prev_min_dist: float, min_dist: float) -> None:
-        k = ipctk.update_barrier_stiffness(
-            prev_min_dist, min_dist, self.kappa_max, self.kappa, self.bbox_diagonal, dmin=self.barrier_dmin
-        )
-        if k != self.kappa:
-            self.set_kappa(k)
+        """Double kappa (up to kappa_max) while the closest contact keeps closing in on the offset.
+
+        The test is on the gap beyond the offset, d - xi: ipctk's update_barrier_stiffness
+        compares raw distances, which with an offset never come below its threshold, so the
+        stiffness never grew and contacts crept to within nanometres of the singular
+        barrier, where Newton crawls (steps cut to a few percent by CCD).
+        """
+        gap, prev_gap = min_dist - self.xi, prev_min_dist - self.xi
+        if gap < self.kappa_gap and gap < prev_gap and self.kappa < self.kappa_max:
+            self.set_kappa(min(self.kappa_max, 2.0 * self.kappa))
 
     def lag_friction(self, x: np.ndarray) -> None:
         """Fix friction normal forces and tangent bases at x (start of the step)."""
