@@ -91,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
 
         with PipelineClient("clothfold_demo") as client:
             kp = client.wait_keypoints(120)
+            pictures = StagePictures(client, bag.with_suffix("")) if args.backend == "sim" else None
             for topic in ("/gripper_0/target_pose", "/fold/result"):  # record the fold from its start
                 launcher.wait_for(recorder, f"recording {topic} ", 60)
             for stage, fold in enumerate(folds):
@@ -102,10 +103,16 @@ def run(args: argparse.Namespace) -> int:
                     print(f"[demo] {fold}: planner refused: {resp.message}", flush=True)
                     break
                 print(f"[demo] stage {stage}: {resp.message}", flush=True)
+                if pictures is not None:
+                    pictures.planned(resp.spec)
                 res = _wait_result(client, launcher, fold, args.timeout, after=before)
                 losses.append((fold, res.success, res.loss, res.reason))
                 print(f"[demo] {fold}: {'success' if res.success else 'FAILED'}, loss {res.loss:.6f} m"
                       + (f" ({res.reason})" if res.reason else "") + f", {res.steps} steps", flush=True)
+                if pictures is not None:
+                    png = pictures.finished(stage, fold, res)
+                    if png:
+                        print(f"[demo] {fold}: picture {png}", flush=True)
                 if not res.success:
                     print(f"[demo] stopping the sequence: {fold} failed", flush=True)
                     break
@@ -139,3 +146,43 @@ def run(args: argparse.Namespace) -> int:
     print(f"[demo] bag: {bag} ({closed or 'recorder did not report closing the bag'})", flush=True)
     print(f"[demo] wall time {time.monotonic() - tic:.1f} s; all processes stopped", flush=True)
     return code
+
+
+class StagePictures:
+    """One top-down PNG per executed stage: the cloth as /cloth/state reports it after the
+    fold, beside the composed target (flat shirt with every planned fold applied)."""
+
+    def __init__(self, client, stem: Path) -> None:
+        from ..ros_conversions import cloth_state_from_msg
+
+        self.client = client
+        self.stem = stem
+        state = cloth_state_from_msg(client.wait_state(60))
+        self.triangles = state.triangles
+        self.thickness = state.thickness
+        self.target = state.vertices.copy()  # the flat shirt: the base of the first fold
+        self.spec = None
+
+    def planned(self, spec_msg) -> None:
+        from ..ros_conversions import fold_spec_from_msg
+
+        self.spec = fold_spec_from_msg(spec_msg).spec
+
+    def finished(self, stage: int, fold: str, res) -> Path | None:
+        from ..loss import fold_target
+        from ..ros_conversions import cloth_state_from_msg, time_to_ns
+        from ..sim.report import plot_top_down
+
+        if self.spec is None:
+            return None
+        self.target = fold_target(self.target, self.spec, self.thickness)
+        try:
+            state = cloth_state_from_msg(self.client.wait_state(30, newer_than_ns=time_to_ns(res.header.stamp) - 1))
+        except TimeoutError:
+            return None
+        path = Path(f"{self.stem}-stage{stage}-{fold}.png")
+        verdict = f"loss {res.loss * 1000:.1f} mm" if res.success else f"FAILED: {res.reason}"
+        plot_top_down(state.vertices, self.target, self.triangles, path,
+                      f"stage {stage}: {fold.replace('_', ' ')} (h {res.height_ratio:.2f}, tilt {res.tilt_deg:.0f} deg)"
+                      f" - {verdict}")
+        return path

@@ -7,7 +7,9 @@ FoldSpec on /fold/spec (latched) and, when execute = true, sends it to trajector
 (action /execute_fold); the response then says whether the goal was accepted (the
 outcome arrives on /fold/result). Bad requests (unknown fold, no keypoints yet,
 NaN keypoints, a refused goal) get success = false and a clear message; the node keeps
-serving.
+serving. Successful folds on /fold/result are remembered (`~/reset`, std_srvs/Trigger,
+forgets them) and passed to fold_spec: the keypoints then describe the folded shirt as
+a camera sees it (docs/method.md, keypoints of a folded shirt).
 
 Selection: `selection` = "parameter" uses the height_ratio and tilt_deg parameters;
 "table" uses clothfold_ros.lookup.planner_selector.TableSelector(table_dir). When the
@@ -20,11 +22,12 @@ import threading
 from pathlib import Path
 
 from clothfold_msgs.action import ExecuteFold
-from clothfold_msgs.msg import FoldSpec as FoldSpecMsg, Keypoints
+from clothfold_msgs.msg import FoldResult, FoldSpec as FoldSpecMsg, Keypoints
 from clothfold_msgs.srv import PlanFold
 from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+from std_srvs.srv import Trigger
 
 from .. import ros_conversions as rc
 from ..folding import FOLD_NAMES, FOLD_SEQUENCE, fold_spec
@@ -71,6 +74,12 @@ class FoldPlannerNode(Node):
         self.spec_pub = self.create_publisher(FoldSpecMsg, common.FOLD_SPEC, common.LATCHED)
         self.executor_client = ActionClient(self, ExecuteFold, common.EXECUTE_FOLD, callback_group=self.group)
         self.create_service(PlanFold, common.PLAN_FOLD, self.on_plan, callback_group=self.group)
+        # Folds made so far (successful /fold/result, in order): the keypoints are those a
+        # camera sees on the folded shirt, and fold_spec needs to know which folds they follow.
+        self.folds_done: list[str] = []
+        self.create_subscription(FoldResult, common.FOLD_RESULT, self.on_result, common.RESULTS,
+                                 callback_group=self.group)
+        self.create_service(Trigger, "~/reset", self.on_reset, callback_group=self.group)
         self._selector = None
         self._selector_error: str | None = None
         self.lock = threading.Lock()
@@ -88,6 +97,18 @@ class FoldPlannerNode(Node):
             return
         with self.lock:
             self.keypoints, self.keypoints_stamp = kp, rc.time_to_ns(msg.header.stamp)
+
+    def on_result(self, msg: FoldResult) -> None:
+        with self.lock:
+            if msg.success and msg.fold_name in FOLD_NAMES and msg.fold_name not in self.folds_done:
+                self.folds_done.append(msg.fold_name)
+                self.get_logger().info(f"folds done: {', '.join(self.folds_done)}")
+
+    def on_reset(self, _req, resp):
+        with self.lock:
+            self.folds_done = []
+        resp.success, resp.message = True, "folds done forgotten (the shirt lies flat)"
+        return resp
 
     # -- selection -----------------------------------------------------------------------------
     def selector(self):
@@ -158,10 +179,11 @@ class FoldPlannerNode(Node):
         if name not in FOLD_NAMES:
             raise ValueError(f"unknown fold; known folds: {', '.join(FOLD_NAMES)}")
         with self.lock:
-            kp, stamp = self.keypoints, self.keypoints_stamp
+            kp, stamp, done = self.keypoints, self.keypoints_stamp, list(self.folds_done)
         if kp is None:
             raise ValueError(f"no keypoints received on {common.KEYPOINTS} yet")
-        spec = fold_spec(name, kp, params.value(self, "end_angle_deg"), params.value(self, "end_height"))
+        spec = fold_spec(name, kp, params.value(self, "end_angle_deg"), params.value(self, "end_height"),
+                         folds_done=done)
         h, tilt, note = self.select(name, kp)
         self.get_logger().info(f"{name}: h={h:g}, tilt={tilt:g} deg ({note}); keypoints stamped {stamp * 1e-9:.3f} s")
         return rc.fold_spec_to_msg(rc.PlannedFold(spec, h, tilt, params.value(self, "duration"),

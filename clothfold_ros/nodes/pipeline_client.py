@@ -31,9 +31,11 @@ class PipelineClient:
         self.node = Node(name, context=self.context)
         self.cond = threading.Condition()
         self.keypoints: Keypoints | None = None
+        self.cloth_state: ClothState | None = None
         self.results: list[FoldResult] = []
         self.node.create_subscription(Keypoints, common.KEYPOINTS, self._on_keypoints, common.LATCHED)
         self.node.create_subscription(FoldResult, common.FOLD_RESULT, self._on_result, common.RESULTS)
+        self.node.create_subscription(ClothState, common.CLOTH_STATE, self._on_state, common.LATCHED)
         self.clock_messages = 0
         self.node.create_subscription(Clock, common.CLOCK, self._on_clock, 10)
         self.plan_client = self.node.create_client(PlanFold, common.PLAN_FOLD)
@@ -55,6 +57,22 @@ class PipelineClient:
         with self.cond:
             self.keypoints = msg
             self.cond.notify_all()
+
+    def _on_state(self, msg: ClothState) -> None:
+        with self.cond:
+            self.cloth_state = msg
+            self.cond.notify_all()
+
+    def wait_state(self, timeout: float, newer_than_ns: int = -1) -> ClothState:
+        """The latest /cloth/state (stamped after newer_than_ns); TimeoutError."""
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while self.cloth_state is None or rc.time_to_ns(self.cloth_state.header.stamp) <= newer_than_ns:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"no cloth state on {common.CLOTH_STATE} within {timeout:g} s")
+                self.cond.wait(left)
+            return self.cloth_state
 
     def _on_clock(self, _msg: Clock) -> None:
         with self.cond:

@@ -37,9 +37,9 @@ class ContactModel:
         # The barrier is singular at xi and reaches xi + dhat.
         self.barrier_dmin = self.xi
         self.barrier_dhat = self.dhat
-        self.mu = float(friction)
+        self.friction_coefficient = float(friction)  # Coulomb mu, every contact
         self.dt = float(dt)
-        self.friction = ipctk.FrictionPotential(eps_v * dt)  # acts on displacements
+        self.friction_potential = ipctk.FrictionPotential(eps_v * dt)  # acts on displacements
         self.narrow_phase = ipctk.AdditiveCCD()
         self.kappa = 0.0
         self.kappa_max = 0.0
@@ -130,14 +130,14 @@ class ContactModel:
         xf = np.asfortranarray(x)
         col = self.build(x)
         self.tangential = ipctk.TangentialCollisions()
-        if len(col) and self.mu > 0:
-            self.tangential.build(self.mesh, xf, col, self.barrier, self.mu)
+        if len(col) and self.friction_coefficient > 0:
+            self.tangential.build(self.mesh, xf, col, self.barrier, self.friction_coefficient)
 
     # -- potentials ---------------------------------------------------------------------
     def energy(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> float:
         e = self.barrier(col, self.mesh, np.asfortranarray(x)) if len(col) else 0.0
         if len(self.tangential):
-            e += self.friction(self.tangential, self.mesh, np.asfortranarray(u))
+            e += self.friction_potential(self.tangential, self.mesh, np.asfortranarray(u))
         return float(e)
 
     def gradient(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -145,7 +145,7 @@ class ContactModel:
         if len(col):
             g += self.barrier.gradient(col, self.mesh, np.asfortranarray(x))
         if len(self.tangential):
-            g += self.friction.gradient(self.tangential, self.mesh, np.asfortranarray(u))
+            g += self.friction_potential.gradient(self.tangential, self.mesh, np.asfortranarray(u))
         return g
 
     def hessian(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> sp.spmatrix | None:
@@ -153,7 +153,7 @@ class ContactModel:
         if len(col):
             h = self.barrier.hessian(col, self.mesh, np.asfortranarray(x), self.psd)
         if len(self.tangential):
-            hf = self.friction.hessian(self.tangential, self.mesh, np.asfortranarray(u), self.psd)
+            hf = self.friction_potential.hessian(self.tangential, self.mesh, np.asfortranarray(u), self.psd)
             h = hf if h is None else h + hf
         return h
 

@@ -35,23 +35,29 @@ def phase_totals(outcome: FoldOutcome) -> dict[str, float]:
 
 def plot_result(outcome: FoldOutcome, triangles: np.ndarray, path: Path, title: str = "") -> None:
     """Top-down PNG: simulated cloth (coloured by height) next to the target."""
+    loss = f"loss {outcome.loss * 1000:.2f} mm" if outcome.success else f"FAILED: {outcome.reason}"
+    plot_top_down(outcome.vertices, outcome.target, triangles, path, f"{title}  {loss}")
+
+
+def plot_top_down(vertices: np.ndarray, target: np.ndarray, triangles: np.ndarray, path: Path, title: str = "") -> None:
+    """Top-down PNG of the cloth vertices (N, 3) beside the target (N, 3), coloured by height."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 5), sharex=True, sharey=True)
-    for ax, verts, name in ((axes[0], outcome.vertices, "simulated"), (axes[1], outcome.target, "target")):
+    top = 1000 * max(float(np.max(vertices[:, 2])), float(np.max(target[:, 2])))  # one colour scale for both
+    for ax, verts, name in ((axes[0], vertices, "simulated"), (axes[1], target, "target")):
         order = np.argsort(verts[triangles].mean(axis=1)[:, 2])  # draw higher triangles last
         tpc = ax.tripcolor(verts[:, 0], verts[:, 1], triangles[order], facecolors=verts[triangles[order]].mean(axis=1)[:, 2] * 1000,
-                           cmap="viridis", edgecolors="none")
+                           cmap="viridis", edgecolors="none", vmin=0.0, vmax=top)
         ax.set_title(name)
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
     axes[0].set_ylabel("y (m)")
     fig.colorbar(tpc, ax=axes, label="height z (mm)", shrink=0.8)
-    loss = f"loss {outcome.loss * 1000:.2f} mm" if outcome.success else f"FAILED: {outcome.reason}"
-    fig.suptitle(f"{title}  {loss}")
+    fig.suptitle(title)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

@@ -73,11 +73,11 @@ class ClothSimulator:
             raise ValueError("vertices must be a finite (N, 3) array in metres")
         if tri.ndim != 2 or tri.shape[1] != 3 or tri.min() < 0 or tri.max() >= len(x):
             raise ValueError("triangles must be (M, 3) vertex ids into vertices")
-        if not friction >= 0:
-            raise ValueError(f"friction coefficient must be >= 0, got {friction}")
+        if not (np.isfinite(friction) and friction >= 0):
+            raise ValueError(f"friction coefficient must be finite and >= 0, got {friction}")
         rest = x.copy() if rest is None else np.asarray(rest, dtype=float)
         self.material = material
-        self.friction = float(friction)
+        self.friction_coefficient = float(friction)
         self.triangles = tri
         self.x = x
         self.v = np.zeros_like(x)
@@ -89,7 +89,7 @@ class ClothSimulator:
         # Membrane (neo-Hookean) and bending (hinges) from the rest shape.
         self._shape, area = membrane.rest_shape(rest, tri)
         self._volume = area * material.thickness
-        self._lam, self._mu = material.lame
+        self._lame_lambda, self._lame_mu = material.lame
         self._hinges = bending.hinges(tri)
         self._theta_rest, self._hinge_weight = bending.rest_state(rest, self._hinges)
         self._k_bend = material.bending_stiffness
@@ -145,15 +145,15 @@ class ClothSimulator:
     # -- energy -------------------------------------------------------------------------
     def _elastic(self, x: np.ndarray, want_hess: bool = True):
         """Elastic energy (J), per-element gradients and PSD Hessians (membrane, bending)."""
-        em, gm, hm = membrane.membrane_derivatives(x, self.triangles, self._shape, self._volume, self._lam,
-                                                   self._mu, self._project, want_hess)
+        em, gm, hm = membrane.membrane_derivatives(x, self.triangles, self._shape, self._volume, self._lame_lambda,
+                                                   self._lame_mu, self._project, want_hess)
         eb, gb, hb = bending.bending_derivatives(
             x, self._hinges, self._theta_rest, self._hinge_weight, self._k_bend, want_hess
         )
         return em + eb, gm, hm, gb, hb
 
     def _elastic_energy(self, x: np.ndarray) -> float:
-        return membrane.membrane_energy(x, self.triangles, self._shape, self._volume, self._lam, self._mu) + \
+        return membrane.membrane_energy(x, self.triangles, self._shape, self._volume, self._lame_lambda, self._lame_mu) + \
             bending.bending_energy(x, self._hinges, self._theta_rest, self._hinge_weight, self._k_bend)
 
     def _energy(self, x, x_hat, x_prev, col, pull=None) -> float:
