@@ -1,19 +1,13 @@
 """ament_python package clothfold_ros: `ros2 run clothfold_ros <node>` after colcon build."""
 import os
+import runpy
 from glob import glob
 
 from setuptools import find_packages, setup
 
 PACKAGE = "clothfold_ros"
-NODES = [
-    "keypoint_node",
-    "fold_planner_node",
-    "trajectory_node",
-    "cloth_sim_node",
-    "kinematic_robot_node",
-    "recorder_node",
-    "player_node",
-]
+# the node executables, from the one list (standard library only, so it loads without the package's dependencies)
+NODES = runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)), PACKAGE, "nodes", "backends.py"))["NODES"]
 
 setup(
     name=PACKAGE,

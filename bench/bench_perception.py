@@ -210,7 +210,7 @@ def bench_time(args, rng) -> None:
 
 def bench_pipeline(args) -> None:
     """The demo's fold with keypoints from the cloud vs from the cloth state (ground truth)."""
-    from clothfold_ros.launcher import Launcher
+    from clothfold_ros.cli.launcher import Launcher
     from clothfold_ros.nodes.pipeline_client import PipelineClient
 
     for source in ("points", "cloth_state"):

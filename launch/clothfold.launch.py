@@ -1,12 +1,14 @@
 """ROS 2 launch file for a real ROS install: `ros2 launch clothfold_ros clothfold.launch.py [backend:=kinematic]`.
 
-Same nodes and parameters as the pure-Python `clothfold launch` (clothfold_ros/launcher.py):
-config/clothfold.yaml, the sim backend by default; with backend:=kinematic the keypoints come
-from the flat model shirt. On a real robot start your driver instead of both backends
-(backend:=none) and a perception node publishing /keypoints (docs/robot-interface.md).
+Same nodes and parameters as the pure-Python `clothfold launch` (clothfold_ros/cli/launcher.py):
+config/clothfold.yaml, the sim backend by default. The backends, their nodes and what each
+needs (keypoint_node's source, /clock) come from clothfold_ros/nodes/backends.py; with
+backend:=kinematic the keypoints come from the flat model shirt. On a real robot start your
+driver instead of both backends (backend:=none) and a perception node publishing /keypoints
+(docs/robot-interface.md).
 
 Arguments:
-  backend       sim | kinematic | none (default sim)
+  backend       a name in clothfold_ros.nodes.backends.BACKENDS: sim | kinematic | none (default sim)
   use_sim_time  true | false for keypoint_node, fold_planner_node, trajectory_node; default
                 true with a simulated backend (it publishes /clock), false with backend:=none
                 (a real driver publishes no /clock)
@@ -18,6 +20,7 @@ Arguments:
 import os
 
 from ament_index_python.packages import get_package_share_directory
+from clothfold_ros.nodes.backends import BACKENDS, DEFAULT_BACKEND, PIPELINE
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition
@@ -25,9 +28,16 @@ from launch.substitutions import LaunchConfiguration, PythonExpression
 from launch_ros.actions import Node
 
 PACKAGE = "clothfold_ros"
-EXECUTABLES = ("cloth_sim_node", "kinematic_robot_node", "keypoint_node", "fold_planner_node", "trajectory_node")
 PARAMS_FILE = "clothfold.yaml"
-BACKENDS = ("sim", "kinematic", "none")
+
+
+def _by_backend(backend: LaunchConfiguration, values: dict[str, str]) -> PythonExpression:
+    """An expression that picks values[backend] (a string) when the launch runs."""
+    return PythonExpression([repr(values), "['", backend, "']"])
+
+
+def _if_backend(backend: LaunchConfiguration, name: str) -> IfCondition:
+    return IfCondition(PythonExpression(["'", backend, f"' == '{name}'"]))
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -35,27 +45,28 @@ def generate_launch_description() -> LaunchDescription:
     backend = LaunchConfiguration("backend")
     params = LaunchConfiguration("params_file")
     sim_time = {"use_sim_time": LaunchConfiguration("use_sim_time")}
-    is_sim = PythonExpression(["'", backend, "' == 'sim'"])
-    is_kinematic = PythonExpression(["'", backend, "' == 'kinematic'"])
-    return LaunchDescription([
-        DeclareLaunchArgument("backend", default_value="sim", choices=list(BACKENDS),
-                              description="sim | kinematic | none (a real driver)"),
+    actions = [
+        DeclareLaunchArgument("backend", default_value=DEFAULT_BACKEND, choices=list(BACKENDS),
+                              description=" | ".join(f"{n} ({b.help})" for n, b in BACKENDS.items())),
         DeclareLaunchArgument("use_sim_time",
-                              default_value=PythonExpression(["'false' if '", backend, "' == 'none' else 'true'"]),
-                              description="pipeline nodes on /clock (default: true unless backend:=none)"),
+                              default_value=_by_backend(backend, {n: str(b.clock).lower() for n, b in BACKENDS.items()}),
+                              description="pipeline nodes on /clock (default: true where the backend publishes it)"),
         DeclareLaunchArgument("lookahead", default_value="0.2",
                               description="trajectory_node.lookahead (s); 0 for a driver executing on receipt"),
         DeclareLaunchArgument("params_file", default_value=default_params, description="parameters YAML"),
-        Node(package=PACKAGE, executable="cloth_sim_node", name="cloth_sim_node", parameters=[params],
-             output="screen", condition=IfCondition(is_sim)),
-        Node(package=PACKAGE, executable="kinematic_robot_node", name="kinematic_robot_node", parameters=[params],
-             output="screen", condition=IfCondition(is_kinematic)),
-        Node(package=PACKAGE, executable="keypoint_node", name="keypoint_node",
-             parameters=[params, sim_time, {"source": PythonExpression(["'model' if '", backend,
-                                                                        "' == 'kinematic' else 'cloth_state'"])}],
-             output="screen"),
-        Node(package=PACKAGE, executable="fold_planner_node", name="fold_planner_node", parameters=[params, sim_time],
-             output="screen"),
-        Node(package=PACKAGE, executable="trajectory_node", name="trajectory_node",
-             parameters=[params, sim_time, {"lookahead": LaunchConfiguration("lookahead")}], output="screen"),
-    ])
+    ]
+    for name, b in BACKENDS.items():
+        if b.node:
+            actions.append(Node(package=PACKAGE, executable=b.node, name=b.node, parameters=[params], output="screen",
+                                condition=_if_backend(backend, name)))
+    extra = {"trajectory_node": [{"lookahead": LaunchConfiguration("lookahead")}]}
+    for node in PIPELINE:
+        if node == "keypoint_node":  # one per backend: its keypoint source, where it needs one
+            for name, b in BACKENDS.items():
+                source = [{"source": b.keypoint_source}] if b.keypoint_source else []
+                actions.append(Node(package=PACKAGE, executable=node, name=node, parameters=[params, sim_time, *source],
+                                    output="screen", condition=_if_backend(backend, name)))
+            continue
+        actions.append(Node(package=PACKAGE, executable=node, name=node, parameters=[params, sim_time, *extra.get(node, [])],
+                            output="screen"))
+    return LaunchDescription(actions)

@@ -4,7 +4,7 @@ from __future__ import annotations
 from contextlib import contextmanager
 from typing import Iterator
 
-from clothfold_ros.launcher import Launcher
+from clothfold_ros.cli.launcher import Launcher
 
 
 @contextmanager

@@ -16,7 +16,7 @@ import pytest
 
 from clothfold_ros.folding import fold_spec
 from clothfold_ros.garment import make_shirt
-from clothfold_ros.launcher import Launcher, node_command
+from clothfold_ros.cli.launcher import Launcher, node_command
 from clothfold_ros.pose import Pose
 
 DOMAIN = 156
@@ -125,14 +125,14 @@ def _command(r, stamp_ns: int, position: float, effort: float = -1.0) -> None:
 
 
 def _targets(r, stamps, positions) -> None:
-    from clothfold_ros.ros_conversions import pose_stamped
+    from clothfold_ros.nodes.conversions import pose_stamped
 
     for s, p in zip(stamps, positions):
         r.target.publish(pose_stamped(Pose(np.asarray(p, float), np.array([0.0, 0.0, 0.0, 1.0])), s))
 
 
 def _announce(r, t0_ns: int, duration: float):
-    from clothfold_ros.ros_conversions import PlannedFold, fold_spec_to_msg
+    from clothfold_ros.nodes.conversions import PlannedFold, fold_spec_to_msg
 
     spec = fold_spec("left_sleeve", make_shirt(1, max_area=5e-3).keypoints())
     r.active.publish(fold_spec_to_msg(PlannedFold(spec, 0.5, 30.0, duration, 0.2, 0, t0_ns)))

@@ -89,8 +89,8 @@ def test_installed_resources_resolve_through_the_ament_index(install_run):
     ws, proc = install_run
     install = ws / "install"
     site = install / "clothfold_ros" / "lib" / "python3.11" / "site-packages"
-    code = ("from clothfold_ros import launcher\n"  # what fold_planner_node.resolve_dir uses for table_dir
-            "print(launcher.SOURCE_CHECKOUT, launcher.__file__, launcher.resource('config/tables'), launcher.work_dir())\n")
+    code = ("from clothfold_ros.nodes import resources as r\n"  # what fold_planner_node.resolve_dir uses for table_dir
+            "print(r.SOURCE_CHECKOUT, r.__file__, r.resource('config/tables'), r.work_dir())\n")
     env = {"PATH": f"{VENV}/bin:/usr/bin:/bin", "AMENT_PREFIX_PATH": f"{install / 'clothfold_ros'}:"
            f"{install / 'clothfold_msgs'}:{VENV}", "PYTHONPATH": str(site), "HOME": str(ws)}
     out = subprocess.run([sys.executable, "-c", code], cwd=ws, env=env, capture_output=True, text=True,

@@ -11,8 +11,8 @@ import pytest
 from clothfold_msgs.msg import ClothState
 
 from clothfold_ros.garment import make_shirt
-from clothfold_ros.launcher import Launcher, node_command
-from clothfold_ros.ros_conversions import cloth_state_to_msg, keypoints_from_msg
+from clothfold_ros.cli.launcher import Launcher, node_command
+from clothfold_ros.nodes.conversions import cloth_state_to_msg, keypoints_from_msg
 
 DOMAIN_TABLE = 152
 DOMAIN_PARAMS = 153

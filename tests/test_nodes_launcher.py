@@ -1,26 +1,95 @@
 """Launcher (pure Python process manager), launch file and config consistency."""
 from __future__ import annotations
 
-import ast
+import runpy
 import sys
 import time
+import types
 
+import pytest
 import yaml
 
-from clothfold_ros.launcher import DEFAULT_PARAMS, ROOT, Launcher, pipeline_nodes
+from clothfold_ros.cli.launcher import Launcher, pipeline_nodes
+from clothfold_ros.nodes.backends import BACKENDS, NODES, PIPELINE
+from clothfold_ros.nodes.resources import DEFAULT_PARAMS, ROOT
 
 
-def test_launch_file_names_existing_executables_and_config():
-    src = (ROOT / "launch" / "clothfold.launch.py").read_text()
-    compile(src, "clothfold.launch.py", "exec")
-    tree = ast.parse(src)
-    consts = {n.targets[0].id: ast.literal_eval(n.value) for n in tree.body
-              if isinstance(n, ast.Assign) and isinstance(n.targets[0], ast.Name)}
-    setup = (ROOT / "setup.py").read_text()
-    for exe in consts["EXECUTABLES"]:
-        assert f'"{exe}"' in setup and (ROOT / "clothfold_ros" / "nodes" / f"{exe}.py").is_file()
-        assert f'executable="{exe}"' in src
-    assert (ROOT / "config" / consts["PARAMS_FILE"]).is_file()
+def test_every_registered_node_exists_and_is_installed(monkeypatch):
+    for exe in NODES:
+        src = (ROOT / "clothfold_ros" / "nodes" / f"{exe}.py").read_text()
+        assert "def main(" in src, exe
+    assert {b.node for b in BACKENDS.values()} - {None} <= set(NODES) and set(PIPELINE) <= set(NODES)
+    import setuptools
+
+    got = {}
+    monkeypatch.setattr(setuptools, "setup", lambda **kw: got.update(kw))
+    monkeypatch.chdir(ROOT)
+    runpy.run_path(str(ROOT / "setup.py"))
+    scripts = got["entry_points"]["console_scripts"]
+    assert sorted(scripts) == sorted([f"{n} = clothfold_ros.nodes.{n}:main" for n in NODES]
+                                     + ["clothfold = clothfold_ros.cli:main"])
+
+
+class _Fake:
+    def __init__(self, *args, **kw):
+        self.args, self.kw = args, kw
+
+
+class _Config(_Fake):
+    def resolve(self, args):
+        return args[self.args[0]]
+
+
+class _Expr(_Fake):
+    def resolve(self, args):
+        return str(eval("".join(p.resolve(args) if hasattr(p, "resolve") else p for p in self.args[0])))
+
+
+def _launch_file_nodes(monkeypatch, backend: str, **given) -> dict[str, list]:
+    """Run launch/clothfold.launch.py against stand-ins of launch, launch_ros and the ament
+    index; {node name: its resolved parameter list} of the nodes started for these arguments."""
+    fakes = {"ament_index_python": {}, "ament_index_python.packages": {"get_package_share_directory": lambda p: f"/share/{p}"},
+             "launch": {"LaunchDescription": _Fake}, "launch.actions": {"DeclareLaunchArgument": _Fake},
+             "launch.conditions": {"IfCondition": _Fake},
+             "launch.substitutions": {"LaunchConfiguration": _Config, "PythonExpression": _Expr},
+             "launch_ros": {}, "launch_ros.actions": {"Node": _Fake}}
+    for name, attrs in fakes.items():
+        monkeypatch.setitem(sys.modules, name, types.SimpleNamespace(**attrs))
+    desc = runpy.run_path(str(ROOT / "launch" / "clothfold.launch.py"))["generate_launch_description"]()
+    actions = desc.args[0]
+    args = {"backend": backend}
+    for a in actions:
+        if a.args and a.args[0] != "backend":
+            d = a.kw["default_value"]
+            args[a.args[0]] = given.get(a.args[0], d.resolve(args) if hasattr(d, "resolve") else d)
+    assert args["backend"] in actions[0].kw["choices"]
+    started = {}
+    for a in actions:
+        if "executable" not in a.kw:
+            continue
+        cond = a.kw.get("condition")
+        if cond is None or cond.args[0].resolve(args) == "True":
+            assert a.kw["name"] not in started, f"{a.kw['name']} started twice"
+            started[a.kw["name"]] = [{k: v.resolve(args) if hasattr(v, "resolve") else v for k, v in p.items()}
+                                     if isinstance(p, dict) else p.resolve(args) for p in a.kw["parameters"]]
+    return started
+
+
+@pytest.mark.parametrize("backend", sorted(BACKENDS))
+def test_launch_file_starts_what_the_launcher_starts(monkeypatch, backend):
+    """The launch file and `clothfold launch` read the same registry: same nodes, keypoint
+    source and use_sim_time for every backend."""
+    started = _launch_file_nodes(monkeypatch, backend, params_file="p.yaml")
+    cmds = dict(pipeline_nodes(backend, params_file="p.yaml"))
+    assert set(started) == set(cmds)
+    for node, ps in started.items():
+        assert ps[0] == "p.yaml" and "--params-file" in cmds[node]
+        merged = {k: v for p in ps[1:] for k, v in p.items()}
+        cli = dict(a.split(":=") for a in cmds[node] if ":=" in a)
+        assert {k: str(v).lower() for k, v in merged.items() if k != "lookahead"} == cli, node
+    assert (ROOT / "config" / "clothfold.yaml").is_file()
+    lookahead = _launch_file_nodes(monkeypatch, backend, lookahead="0.0")["trajectory_node"][-1]["lookahead"]
+    assert lookahead == "0.0"
 
 
 def test_config_parameters_are_declared():
@@ -77,7 +146,7 @@ def test_launcher_escalates_and_leaves_nothing(tmp_path):
     assert not alive, "a grandchild survived"
 
 
-def test_backend_none_runs_the_pipeline_on_wall_time():
+def test_backend_none_runs_the_pipeline_on_wall_time(monkeypatch):
     """A real driver publishes no /clock: backend none starts no backend and the pipeline nodes with
     use_sim_time false; the launch file has the same arguments (use_sim_time, lookahead)."""
     cmds = dict(pipeline_nodes("none"))
@@ -86,9 +155,7 @@ def test_backend_none_runs_the_pipeline_on_wall_time():
         assert "use_sim_time:=false" in cmds[n], (n, cmds[n])
     assert "use_sim_time:=true" in dict(pipeline_nodes("sim"))["trajectory_node"]
     assert "lookahead:=0.0" in dict(pipeline_nodes("none", lookahead=0.0))["trajectory_node"]
-    tree = ast.parse((ROOT / "launch" / "clothfold.launch.py").read_text())
-    declared = {c.args[0].value for c in ast.walk(tree) if isinstance(c, ast.Call)
-                and getattr(c.func, "id", "") == "DeclareLaunchArgument"}
-    assert {"backend", "use_sim_time", "lookahead"} <= declared, declared
-    src = (ROOT / "launch" / "clothfold.launch.py").read_text()
-    assert "'false' if '" in src and "== 'none'" in src  # use_sim_time defaults to false with backend:=none
+    started = _launch_file_nodes(monkeypatch, "none")
+    assert set(started) == {"keypoint_node", "fold_planner_node", "trajectory_node"}
+    assert all(ps[1]["use_sim_time"] == "false" for ps in started.values())
+    assert _launch_file_nodes(monkeypatch, "sim")["trajectory_node"][1]["use_sim_time"] == "true"

@@ -11,10 +11,10 @@ from clothfold_msgs.msg import FoldResult, FoldSpec as FoldSpecMsg
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import Marker
 
-from clothfold_ros import ros_conversions as rc
+from clothfold_ros.nodes import conversions as rc
 from clothfold_ros.folding import fold_spec
 from clothfold_ros.garment import KEYPOINT_NAMES, make_shirt
-from clothfold_ros.launcher import Launcher, node_command
+from clothfold_ros.cli.launcher import Launcher, node_command
 from clothfold_ros.loss import fold_target
 from clothfold_ros.nodes import common
 from clothfold_ros.nodes.keypoint_node import OUTLINE_TOPIC, cloud_from_msg

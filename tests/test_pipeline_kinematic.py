@@ -15,7 +15,7 @@ from geometry_msgs.msg import Point
 
 from pipeline_helpers import running_pipeline
 
-from clothfold_ros.ros_conversions import fold_spec_from_msg
+from clothfold_ros.nodes.conversions import fold_spec_from_msg
 
 DOMAIN = 151
 

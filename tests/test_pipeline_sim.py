@@ -12,7 +12,7 @@ from pipeline_helpers import running_pipeline
 
 from clothfold_ros.garment import make_shirt
 from clothfold_ros.materials import material
-from clothfold_ros.ros_conversions import fold_spec_from_msg, keypoints_from_msg
+from clothfold_ros.nodes.conversions import fold_spec_from_msg, keypoints_from_msg
 from clothfold_ros.sim.runner import run_fold
 
 DOMAIN = 150

@@ -21,11 +21,15 @@ import time
 from pathlib import Path
 
 from ..folding import FOLD_NAMES, FOLD_SEQUENCE
+from ..nodes.backends import BACKENDS, DEFAULT_BACKEND
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="fold the default shirt's left sleeve through the ROS pipeline; record a bag")
-    p.add_argument("--backend", choices=("sim", "kinematic"), default="sim", help="robot backend (default sim)")
+    demo_backends = [b for b in BACKENDS.values() if b.demo]
+    p.add_argument("--backend", choices=[b.name for b in demo_backends], default=DEFAULT_BACKEND,
+                   help="robot backend: " + "; ".join(f"{b.name}: {b.help}" for b in demo_backends)
+                   + f" (default {DEFAULT_BACKEND})")
     p.add_argument("--fold", choices=FOLD_NAMES, default="left_sleeve", help="the fold (default left_sleeve)")
     p.add_argument("--sequence", action="store_true", help="fold the whole sequence: " + ", ".join(FOLD_SEQUENCE))
     p.add_argument("--max-area", type=float, default=5e-4, help="sim mesh max triangle area (m^2; default 5e-4, about 1.2K triangles)")
@@ -57,7 +61,8 @@ def _wait_result(client, launcher, fold: str, timeout: float, after: int):
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..launcher import DEFAULT_PARAMS, Launcher, node_command, work_dir
+    from ..nodes.resources import DEFAULT_PARAMS, work_dir
+    from .launcher import Launcher, node_command
 
     tic = time.monotonic()
     old_term = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM: the same clean stop as Ctrl-C
@@ -87,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
         for p in launcher.procs:
             print(f"[demo] started {p.name} (pid {p.pid})", flush=True)
         from ..nodes.pipeline_client import PipelineClient
-        from ..ros_conversions import time_to_ns
+        from ..nodes.conversions import time_to_ns
 
         with PipelineClient("clothfold_demo") as client:
             kp = client.wait_keypoints(120)
@@ -153,7 +158,7 @@ class StagePictures:
     fold, beside the composed target (flat shirt with every planned fold applied)."""
 
     def __init__(self, client, stem: Path) -> None:
-        from ..ros_conversions import cloth_state_from_msg
+        from ..nodes.conversions import cloth_state_from_msg
 
         self.client = client
         self.stem = stem
@@ -164,13 +169,13 @@ class StagePictures:
         self.spec = None
 
     def planned(self, spec_msg) -> None:
-        from ..ros_conversions import fold_spec_from_msg
+        from ..nodes.conversions import fold_spec_from_msg
 
         self.spec = fold_spec_from_msg(spec_msg).spec
 
     def finished(self, stage: int, fold: str, res) -> Path | None:
         from ..loss import fold_target
-        from ..ros_conversions import cloth_state_from_msg, time_to_ns
+        from ..nodes.conversions import cloth_state_from_msg, time_to_ns
         from ..sim.report import plot_top_down
 
         if self.spec is None:

@@ -1,4 +1,4 @@
-"""`clothfold launch [--backend sim|kinematic]`: every pipeline node as its own process
+"""`clothfold launch [--backend NAME]`: every pipeline node as its own process
 (the pure-Python equivalent of launch/clothfold.launch.py); Ctrl-C stops them all."""
 from __future__ import annotations
 
@@ -19,10 +19,13 @@ def parse_overrides(items: list[str]) -> dict[str, dict[str, str]]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..launcher import BACKENDS, DEFAULT_PARAMS
+    from ..nodes.backends import BACKENDS, DEFAULT_BACKEND
+    from ..nodes.resources import DEFAULT_PARAMS
 
     p = sub.add_parser("launch", help="start all pipeline nodes as separate processes (Ctrl-C stops them)")
-    p.add_argument("--backend", choices=sorted(BACKENDS), default="sim", help="robot backend (default sim)")
+    p.add_argument("--backend", choices=sorted(BACKENDS), default=DEFAULT_BACKEND,
+                   help="robot backend: " + "; ".join(f"{b.name}: {b.help}" for b in BACKENDS.values())
+                   + f" (default {DEFAULT_BACKEND})")
     p.add_argument("--params-file", type=Path, default=DEFAULT_PARAMS, help="ROS 2 parameters YAML")
     p.add_argument("-p", "--param", action="append", default=[], metavar="NODE:NAME:=VALUE",
                    help="override one node parameter (repeatable)")
@@ -34,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from ..launcher import Launcher, node_command, run_until_interrupted
+    from .launcher import Launcher, node_command, run_until_interrupted
 
     try:
         overrides = parse_overrides(args.param)

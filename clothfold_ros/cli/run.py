@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 
-NODES = ("keypoint_node", "fold_planner_node", "trajectory_node", "cloth_sim_node", "kinematic_robot_node",
-         "recorder_node", "player_node")
+from ..nodes.backends import NODES
 
 
 def register(sub: argparse._SubParsersAction) -> None:

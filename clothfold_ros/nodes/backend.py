@@ -28,7 +28,7 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from .. import ros_conversions as rc
+from . import conversions as rc
 from ..pose import Pose
 from . import common, params
 from .errorlog import ErrorLog

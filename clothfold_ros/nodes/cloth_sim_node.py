@@ -31,7 +31,7 @@ from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
-from .. import ros_conversions as rc
+from . import conversions as rc
 from ..pose import Pose
 from ..sim.config import SimConfig
 from . import common, params

@@ -29,7 +29,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from .. import ros_conversions as rc
+from . import conversions as rc
 from ..folding import FOLD_NAMES, FOLD_SEQUENCE, fold_spec
 from ..garment import KEYPOINT_NAMES
 from . import common, params
@@ -57,7 +57,7 @@ PARAMS = [
 
 def resolve_dir(path: str) -> Path:
     """table_dir as a path: absolute as given, relative below the package share directory."""
-    from ..launcher import resource
+    from .resources import resource
 
     return resource(path)
 

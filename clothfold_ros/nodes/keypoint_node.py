@@ -36,7 +36,7 @@ from std_msgs.msg import ColorRGBA
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
-from .. import ros_conversions as rc
+from . import conversions as rc
 from . import common, params
 from .params import Param
 

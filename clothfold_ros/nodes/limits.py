@@ -85,7 +85,7 @@ LAYER_OFFSET_RANGE = (1.0, 8.0)  # x thickness
 
 
 def check_plan(plan) -> str | None:
-    """Reason a PlannedFold (ros_conversions) is outside what is executed, or None: a known fold
+    """Reason a PlannedFold (nodes/conversions) is outside what is executed, or None: a known fold
     name, (h, tilt) inside the search space, duration and settle time in their ranges, one or two
     grippers with matching pose / tilt sign arrays, tilt signs +-1, a unit horizontal fold line."""
     from ..folding import FOLD_NAMES

@@ -19,7 +19,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
-from .. import ros_conversions as rc
+from . import conversions as rc
 from . import common
 
 

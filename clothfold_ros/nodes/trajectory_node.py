@@ -37,7 +37,7 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
-from .. import ros_conversions as rc
+from . import conversions as rc
 from ..pose import Pose
 from ..trajectory import FoldTrajectory
 from . import common, params

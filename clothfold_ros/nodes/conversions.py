@@ -20,8 +20,8 @@ from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker
 
-from .folding import FoldSpec
-from .pose import Pose
+from ..folding import FoldSpec
+from ..pose import Pose
 
 TABLE_FRAME = "table"
 NS_PER_S = 1_000_000_000

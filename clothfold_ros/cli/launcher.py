@@ -20,51 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Sequence
 
-PACKAGE = "clothfold_ros"
-ROOT = Path(__file__).resolve().parent.parent  # the checkout when run from source, else site-packages
-SOURCE_CHECKOUT = (ROOT / "package.xml").is_file() and (ROOT / "config").is_dir()
-PIPELINE = ("keypoint_node", "fold_planner_node", "trajectory_node")
-BACKENDS = {"sim": "cloth_sim_node", "kinematic": "kinematic_robot_node", "none": None}  # none: a real driver
-
-
-def share_dir() -> Path:
-    """Directory of the package resources (config/, launch/, package.xml): the checkout when
-    run from source, else share/clothfold_ros of the install, found through the ament index
-    (AMENT_PREFIX_PATH). RuntimeError when neither exists."""
-    if SOURCE_CHECKOUT:
-        return ROOT
-    try:
-        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-    except ImportError as err:
-        raise RuntimeError(f"not a source checkout and ament_index_python is missing ({err})") from err
-    try:
-        return Path(get_package_share_directory(PACKAGE))
-    except PackageNotFoundError as err:
-        raise RuntimeError(f"package {PACKAGE} not in the ament index (AMENT_PREFIX_PATH="
-                           f"{os.environ.get('AMENT_PREFIX_PATH', '')!r}); source the install's setup.bash") from err
-
-
-def resource(path: str | Path) -> Path:
-    """A package resource: absolute paths as given, relative ones below share_dir()
-    (e.g. "config/tables" -> <share>/config/tables)."""
-    p = Path(path)
-    return p if p.is_absolute() else share_dir() / p
-
-
-def work_dir() -> Path:
-    """Where relative output paths (bags/) go: the checkout from source, else the current directory
-    (an install's share/ and site-packages are not for output)."""
-    return ROOT if SOURCE_CHECKOUT else Path.cwd()
-
-
-def _default_params() -> Path:
-    try:
-        return resource("config/clothfold.yaml")
-    except RuntimeError:
-        return Path("config/clothfold.yaml")  # reported as missing where it is used
-
-
-DEFAULT_PARAMS = _default_params()
+from ..nodes.backends import PIPELINE, backend as get_backend
+from ..nodes.resources import DEFAULT_PARAMS, work_dir
 
 
 def _fmt(value: object) -> str:
@@ -91,27 +48,26 @@ def node_command(node: str, params_file: str | Path | None = None, params: dict 
 def pipeline_nodes(backend: str = "sim", params_file: str | Path | None = DEFAULT_PARAMS,
                    overrides: dict[str, dict] | None = None, use_sim_time: bool | None = None,
                    lookahead: float | None = None) -> list[tuple[str, list[str]]]:
-    """(name, command) of every pipeline node for a backend ("sim", "kinematic" or "none").
+    """(name, command) of every pipeline node for a backend (nodes/backends.BACKENDS).
 
-    overrides: node name -> {parameter: value}. The kinematic backend has no cloth, so
-    keypoint_node publishes the model shirt's keypoints (source = model). backend "none"
-    starts no backend (a real driver runs instead); the pipeline nodes then run on wall time
-    (use_sim_time false: a driver publishes no /clock). use_sim_time / lookahead (s) given
+    overrides: node name -> {parameter: value}. A backend without cloth (kinematic) sets
+    keypoint_node's source (model: the flat model shirt's keypoints). Backend "none" starts
+    no backend (a real driver runs instead); a backend that publishes no /clock runs the
+    pipeline nodes on wall time (use_sim_time false). use_sim_time / lookahead (s) given
     here set those parameters of the pipeline nodes / trajectory_node (what the launch file's
     arguments of the same names do).
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
+    b = get_backend(backend)
     overrides = {k: dict(v) for k, v in (overrides or {}).items()}
-    if backend == "kinematic":
-        overrides.setdefault("keypoint_node", {}).setdefault("source", "model")
+    if b.keypoint_source is not None:
+        overrides.setdefault("keypoint_node", {}).setdefault("source", b.keypoint_source)
     if use_sim_time is None:
-        use_sim_time = backend != "none"
+        use_sim_time = b.clock
     for n in PIPELINE:
         overrides.setdefault(n, {}).setdefault("use_sim_time", bool(use_sim_time))
     if lookahead is not None:
         overrides.setdefault("trajectory_node", {})["lookahead"] = float(lookahead)
-    names = [n for n in (BACKENDS[backend], *PIPELINE) if n]
+    names = [n for n in (b.node, *PIPELINE) if n]
     return [(n, node_command(n, params_file, overrides.get(n))) for n in names]
 
 

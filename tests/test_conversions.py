@@ -1,4 +1,4 @@
-"""ros_conversions: round trips and the ValueErrors for bad messages."""
+"""nodes/conversions: round trips and the ValueErrors for bad messages."""
 from __future__ import annotations
 
 import math
@@ -8,7 +8,7 @@ import pytest
 from clothfold_msgs.msg import Keypoints
 from geometry_msgs.msg import Point
 
-from clothfold_ros import ros_conversions as rc
+from clothfold_ros.nodes import conversions as rc
 from clothfold_ros.folding import fold_spec
 from clothfold_ros.garment import make_shirt
 from clothfold_ros.pose import Pose
