@@ -4,7 +4,23 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-TABLES_ROOT = Path("config/tables")
+TABLES_ROOT = Path("config/tables")  # a package resource: below the checkout or share/clothfold_ros
+
+
+def shipped_tables() -> Path:
+    """The package's lookup tables: <checkout>/config/tables from source, else
+    <install>/share/clothfold_ros/config/tables (ament index), never the working directory."""
+    from ..nodes.resources import resource
+
+    return resource(TABLES_ROOT)
+
+
+def output_tables() -> Path:
+    """Where commands write tables by default: the checkout's config/tables from source, else
+    ./config/tables (an install's share/ is not for output)."""
+    from ..nodes.resources import work_dir
+
+    return work_dir() / TABLES_ROOT
 
 
 def add_stepping_options(p: argparse.ArgumentParser) -> None:
@@ -16,4 +32,10 @@ def add_stepping_options(p: argparse.ArgumentParser) -> None:
 
 def add_tables_option(p: argparse.ArgumentParser, help: str = "lookup tables root") -> None:
     """--tables: the folder holding one table folder per scenario (plot, regret)."""
-    p.add_argument("--tables", type=Path, default=TABLES_ROOT, help=f"{help} (default {TABLES_ROOT})")
+    p.add_argument("--tables", type=Path, default=None,
+                   help=f"{help} (default: the package's {TABLES_ROOT}, from source or the install)")
+
+
+def tables_arg(args: argparse.Namespace) -> Path:
+    """--tables as given (relative to the working directory), else the package's tables."""
+    return args.tables if args.tables is not None else shipped_tables()

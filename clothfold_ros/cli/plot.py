@@ -5,14 +5,15 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._options import add_tables_option
+from ._options import TABLES_ROOT, add_tables_option, output_tables, tables_arg
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plot", help="PNG loss landscape (fan layout) and best/worst final cloth of lookup tables")
     p.add_argument("scenarios", nargs="*", help="scenario names (default: every table under --tables)")
     add_tables_option(p)
-    p.add_argument("--out", type=Path, default=None, help="output folder (default: each table's own folder)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default: each table's own folder; for the "
+                   f"tables of an install ./{TABLES_ROOT}/<scenario>/)")
     p.set_defaults(func=run)
 
 
@@ -20,14 +21,24 @@ def run(args: argparse.Namespace) -> int:
     from ..lookup.plot import plot_best_worst, plot_landscape
     from ..lookup.sweep_dir import BEST_WORST_PNG, LANDSCAPE_PNG, table_dirs
 
-    names = args.scenarios or [d.name for d in table_dirs(args.tables)]
+    from ..nodes.resources import SOURCE_CHECKOUT
+
+    try:
+        tables = tables_arg(args)
+    except RuntimeError as err:
+        print(f"clothfold plot: {err}", file=sys.stderr)
+        return 2
+    out_root = args.out
+    if out_root is None and args.tables is None and not SOURCE_CHECKOUT:
+        out_root = output_tables()  # never write into an install's share/
+    names = args.scenarios or [d.name for d in table_dirs(tables)]
     if not names:
-        print(f"clothfold plot: no tables under {args.tables}", file=sys.stderr)
+        print(f"clothfold plot: no tables under {tables}", file=sys.stderr)
         return 2
     rc = 0
     for n in names:
-        d = args.tables / n
-        out = args.out / n if args.out else d
+        d = tables / n
+        out = out_root / n if out_root else d
         try:
             print(plot_landscape(d, out / LANDSCAPE_PNG))
             print(plot_best_worst(d, out / BEST_WORST_PNG))

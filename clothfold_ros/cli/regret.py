@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._options import add_tables_option
+from ._options import add_tables_option, tables_arg
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,10 +20,10 @@ def run(args: argparse.Namespace) -> int:
     from ..lookup.table import load_tables
 
     try:
-        tables = load_tables(args.tables)
+        tables = load_tables(tables_arg(args))
         text = (report(evaluate(tables, robust=True), "robust (neighbourhood-smoothed) selection") + "\n\n"
                 + report(evaluate(tables, robust=False), "raw argmin of the nearest table (comparison)"))
-    except (FileNotFoundError, ValueError) as err:
+    except (FileNotFoundError, ValueError, RuntimeError) as err:
         print(f"clothfold regret: {err}", file=sys.stderr)
         return 2
     print(text)

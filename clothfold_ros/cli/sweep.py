@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._options import TABLES_ROOT, add_stepping_options
+from ._options import TABLES_ROOT, add_stepping_options, output_tables, shipped_tables
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -13,8 +13,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("sweep", help="run a scenario over the 134-point fan (resumable) into a lookup table")
     p.add_argument("scenario", help=f"one of: {', '.join(SCENARIOS)}")
-    p.add_argument("--out", type=Path, default=TABLES_ROOT,
-                   help=f"tables root; the sweep writes <out>/<scenario>/ (default {TABLES_ROOT})")
+    p.add_argument("--out", type=Path, default=None,
+                   help=f"tables root; the sweep writes <out>/<scenario>/ (default: the checkout's {TABLES_ROOT} "
+                   f"from source, ./{TABLES_ROOT} on an install). A stage scenario starts from its previous "
+                   "stage's table in <out>, else from the package's shipped one")
     p.add_argument("--points", default="all", help="'all' (134), 'alternate', 'every:R:T' or comma list of fan indices")
     p.add_argument("--max-area", type=float, default=5e-4,
                    help="max triangle area (m^2); default 5e-4 (1.2K triangles, the shipped tables), 5e-5 = full")
@@ -38,10 +40,11 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as err:
         print(f"clothfold sweep: {err}", file=sys.stderr)
         return 2
-    d = args.out / sc.name
-    prev = None if sc.after is None else args.out / sc.after
+    out = args.out if args.out is not None else output_tables()
+    d = out / sc.name
+    prev = None if sc.after is None else previous_stage(out, sc.after)
     command = (f"clothfold sweep {sc.name} --points {args.points} --max-area {args.max_area} --dt {args.dt} "
-               f"--settle {args.settle} --newton-tol {args.newton_tol} --max-newton {args.max_newton} --out {args.out}")
+               f"--settle {args.settle} --newton-tol {args.newton_tol} --max-newton {args.max_newton} --out {out}")
     try:
         rows = run_sweep(settings, d, points, workers=args.workers, ray_address=args.ray, previous_dir=prev,
                          progress=not args.quiet)
@@ -52,3 +55,18 @@ def run(args: argparse.Namespace) -> int:
     failed = sum(not r["success"] for r in rows)
     print(f"{sc.name}: {len(rows)} runs this call ({failed} failed) -> {table}")
     return 0
+
+
+def previous_stage(out: Path, name: str) -> Path:
+    """The table a stage scenario starts from: <out>/<name> when swept there, else the package's
+    shipped table (from source or the install), else <out>/<name> (reported as missing)."""
+    from ..lookup.sweep_dir import has_runs
+
+    here = out / name
+    if has_runs(here):
+        return here
+    try:
+        shipped = shipped_tables() / name
+    except RuntimeError:
+        return here
+    return shipped if has_runs(shipped) else here

@@ -1,0 +1,89 @@
+"""`clothfold sweep`, `plot` and `regret` find the package's lookup tables through the package
+resources (clothfold_ros/nodes/resources.py), not the working directory: from a source checkout
+run in another directory, and from an install (share/clothfold_ros found through the ament
+index). On an install their default output goes to the working directory, never into share/."""
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from clothfold_ros.cli import main
+from clothfold_ros.nodes import resources
+
+CHECKOUT_TABLES = Path(__file__).resolve().parent.parent / "config" / "tables"
+# a sweep of the second sleeve at another resolution than its shipped first stage: refused at once,
+# with a message that proves the shipped first-stage table was found (no simulation runs)
+SWEEP = ["sweep", "both_sleeves", "--points", "0", "--max-area", "1e-3", "--workers", "1", "--quiet"]
+FOUND_SHIPPED = "'shape1' was swept at max_area 0.0005"
+
+
+@pytest.fixture
+def elsewhere(tmp_path, monkeypatch):
+    """Run from a directory that has no config/."""
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    return work
+
+
+@pytest.fixture
+def installed(tmp_path, monkeypatch, elsewhere):
+    """The package as an install sees it: not a source checkout, resources in
+    <prefix>/share/clothfold_ros registered in the ament index."""
+    prefix = tmp_path / "install"
+    marker = prefix / "share" / "ament_index" / "resource_index" / "packages" / resources.PACKAGE
+    marker.parent.mkdir(parents=True)
+    marker.write_text("")
+    share_tables = prefix / "share" / resources.PACKAGE / "config" / "tables"
+    for name in ("shape1", "both_sleeves"):
+        shutil.copytree(CHECKOUT_TABLES / name, share_tables / name)
+    monkeypatch.setattr(resources, "SOURCE_CHECKOUT", False)
+    monkeypatch.setenv("AMENT_PREFIX_PATH", os.pathsep.join([str(prefix), os.environ.get("AMENT_PREFIX_PATH", "")]))
+    return share_tables
+
+
+def _files(d: Path) -> set[str]:
+    return {str(p.relative_to(d)) for p in d.rglob("*")}
+
+
+def test_regret_from_another_directory(elsewhere, capsys):
+    assert main(["regret"]) == 0, capsys.readouterr().err
+    assert "shape1" in capsys.readouterr().out
+
+
+def test_regret_on_an_install(installed, capsys):
+    assert main(["regret"]) == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    assert "shape1" in out and "both_sleeves" in out
+
+
+def test_plot_from_another_directory(elsewhere, capsys):
+    assert main(["plot", "shape1", "--out", str(elsewhere / "plots")]) == 0, capsys.readouterr().err
+    assert (elsewhere / "plots" / "shape1" / "landscape.png").is_file()
+
+
+def test_plot_on_an_install_writes_to_the_working_directory(installed, elsewhere, capsys):
+    before = _files(installed)
+    assert main(["plot", "shape1"]) == 0, capsys.readouterr().err
+    assert (elsewhere / "config" / "tables" / "shape1" / "landscape.png").is_file()
+    assert (elsewhere / "config" / "tables" / "shape1" / "best_worst.png").is_file()
+    assert _files(installed) == before  # nothing written into share/
+
+
+def test_sweep_stage_starts_from_the_shipped_table_from_another_directory(elsewhere, capsys):
+    out = elsewhere / "tables"
+    assert main([*SWEEP, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert FOUND_SHIPPED in err, err
+
+
+def test_sweep_on_an_install(installed, elsewhere, capsys):
+    before = _files(installed)
+    assert main(SWEEP) == 2
+    err = capsys.readouterr().err
+    assert FOUND_SHIPPED in err, err
+    assert (elsewhere / "config" / "tables" / "both_sleeves").is_dir()  # default output: ./config/tables
+    assert _files(installed) == before
