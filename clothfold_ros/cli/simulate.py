@@ -6,15 +6,17 @@ import sys
 import time
 from pathlib import Path
 
+from ..folding import FOLD_NAMES
+from ..materials import DEFAULT_FRICTION, MATERIALS
 from ._options import add_stepping_options
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("simulate", help="simulate one fold headless (no ROS) and write loss, mesh, stats, PNG")
     p.add_argument("--shape", type=int, default=1, choices=(1, 2, 3), help="shirt shape preset (docs/method.md section 1)")
-    p.add_argument("--material", default="cotton", help="cotton, wool, polyester, thin_cotton, thick_cotton")
-    p.add_argument("--friction", type=float, default=0.5, help="Coulomb coefficient for every contact")
-    p.add_argument("--fold", default="left_sleeve", help="left_sleeve, right_sleeve, left_side, right_side, middle")
+    p.add_argument("--material", default="cotton", help=", ".join(MATERIALS))
+    p.add_argument("--friction", type=float, default=DEFAULT_FRICTION, help="Coulomb coefficient for every contact")
+    p.add_argument("--fold", default="left_sleeve", choices=FOLD_NAMES, help="the fold (default left_sleeve)")
     p.add_argument("--height-ratio", type=float, default=0.45)
     p.add_argument("--tilt", type=float, default=51.4, help="tilt angle (deg)")
     p.add_argument("--duration", type=float, default=4.0, help="motion time T (s)")
@@ -27,18 +29,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..folding import fold_spec
-    from ..garment import make_shirt
-    from ..materials import material
-    from ..sim.config import SimConfig
     from ..sim.report import write_outcome
-    from ..sim.runner import flat_start, run_fold
+    from ..sim.runner import run_fold
+    from ..sim.scene import SceneSettings, build_scene
 
     try:
-        mat = material(args.material)
-        garment = make_shirt(args.shape, max_area=args.max_area)
-        start = flat_start(garment, mat)
-        spec = fold_spec(args.fold, garment.keypoints(start))
-        cfg = SimConfig(dt=args.dt, newton_tol=args.newton_tol)
+        scene = build_scene(SceneSettings(shape=args.shape, max_area=args.max_area, material=args.material,
+                                          friction=args.friction, dt=args.dt, newton_tol=args.newton_tol))
+        garment, mat, cfg = scene.garment, scene.material, scene.config
+        spec = fold_spec(args.fold, garment.keypoints(scene.flat))
     except ValueError as err:
         print(f"clothfold simulate: {err}", file=sys.stderr)
         return 2
@@ -55,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"simulating {args.fold} of shape {args.shape} ({len(garment.vertices)} vertices, "
           f"{len(garment.triangles)} triangles), {args.material}, mu={args.friction}, "
           f"h={args.height_ratio}, tilt={args.tilt} deg, T={args.duration} s", file=sys.stderr)
-    outcome = run_fold(garment, spec, mat, args.friction, args.height_ratio, args.tilt, args.duration,
+    outcome = run_fold(garment, spec, mat, scene.friction, args.height_ratio, args.tilt, args.duration,
                        cfg.dt, args.settle, config=cfg, progress=progress)
     if not args.quiet:
         print(file=sys.stderr)

@@ -17,15 +17,15 @@ from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
-from ..garment import Garment, make_shirt
+from ..garment import Garment
 from ..loss import fold_target
-from ..materials import Material, material
+from ..materials import material
 from ..sim import runner  # runner.run_fold looked up per call (tests patch it)
-from ..sim.config import SimConfig
 from ..sim.runner import flat_start
+from ..sim.scene import Scene, SceneSettings, build_scene
 from ..trajectory import fan
 from . import sweep_dir as layout
-from .scenario import Scenario, features, grip_distance, scenario, spec_for
+from .scenario import features, grip_distance, scenario, spec_for
 from .sweep_dir import SweepSettings, load_final, read_start
 from .table import write_table
 
@@ -84,15 +84,12 @@ def fan_points(selection: str = "all") -> np.ndarray:
     return idx
 
 
-def _config(s: SweepSettings) -> SimConfig:
-    return SimConfig(dt=s.dt, newton_tol=s.newton_tol, max_newton_iterations=s.max_newton_iterations)
-
-
-def _scene(sc: Scenario, max_area: float) -> tuple[Material, Garment, np.ndarray]:
-    """(material, garment meshed at max_area, its flat start state) of a scenario."""
-    mat = material(sc.material)
-    garment = make_shirt(sc.shape, max_area=max_area)
-    return mat, garment, flat_start(garment, mat)
+def _scene(s: SweepSettings) -> Scene:
+    """The simulated scene of a sweep: its scenario's shirt, material and friction at the
+    sweep's mesh resolution and solver settings."""
+    sc = scenario(s.scenario)
+    return build_scene(SceneSettings(shape=sc.shape, max_area=s.max_area, material=sc.material, friction=sc.friction,
+                                     dt=s.dt, newton_tol=s.newton_tol, max_newton_iterations=s.max_newton_iterations))
 
 
 def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
@@ -103,7 +100,8 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
     """
     s = job.settings
     sc = scenario(s.scenario)
-    mat, garment, flat = _scene(sc, s.max_area)
+    scene = _scene(s)
+    mat, garment, flat = scene.material, scene.garment, scene.flat
     x, base = read_start(job.start_file) if job.start_file else (flat, None)
     kp_start = garment.keypoints(x)
     row: dict = {"point": job.point, "height_ratio": job.height_ratio, "tilt_deg": job.tilt_deg}
@@ -112,8 +110,8 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
     for fold in sc.folds:
         try:
             spec, _ = spec_for(fold, kp_start, garment.keypoints(flat))
-            out = runner.run_fold(garment, spec, mat, sc.friction, job.height_ratio, job.tilt_deg, sc.duration,
-                                  s.dt, s.settle_time, vertices=x, target_base=base, config=_config(s))
+            out = runner.run_fold(garment, spec, mat, scene.friction, job.height_ratio, job.tilt_deg, sc.duration,
+                                  s.dt, s.settle_time, vertices=x, target_base=base, config=scene.config)
         except Exception as err:  # a broken setup is recorded like a failed simulation
             ok, reason = False, f"{fold}: {type(err).__name__}: {err}"
             break
@@ -134,7 +132,8 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
     """Write start.npz for a sequence stage from the best successful run of the previous
     stage's sweep; return (path or None, scenario features + spec note)."""
     sc = scenario(settings.scenario)
-    _, garment, flat = _scene(sc, settings.max_area)
+    scene = _scene(settings)
+    garment, flat = scene.garment, scene.flat
     info: dict = {}
     path = None
     if sc.after is None:
@@ -181,8 +180,8 @@ def stage_target(d: str | Path, garment: Garment) -> np.ndarray:
 def finish(d: str | Path, command: str, points: list[int]) -> Path:
     """Write the table (table.csv, provenance.json) of the sweep in `d` and pack its final
     states into finals.npz; returns the table.csv path."""
-    settings = layout.read_settings(d)
-    _, garment, flat = _scene(scenario(settings.scenario), settings.max_area)
+    scene = _scene(layout.read_settings(d))
+    garment, flat = scene.garment, scene.flat
     table = write_table(d, command, points)
     start = layout.start_file(d)
     x = read_start(start)[0] if start else flat

@@ -50,9 +50,9 @@ class SweepSettings:
 
     scenario: str
     max_area: float = 3e-3
-    dt: float = 0.04
+    dt: float = SimConfig.dt
     settle_time: float = 0.2
-    newton_tol: float = 1e-3
+    newton_tol: float = SimConfig.newton_tol
     max_newton_iterations: int = SimConfig.max_newton_iterations
 
     def __post_init__(self) -> None:

@@ -32,6 +32,7 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
 from . import conversions as rc
+from ..materials import DEFAULT_FRICTION
 from ..pose import Pose
 from ..sim.config import SimConfig
 from . import common, params
@@ -43,9 +44,9 @@ PARAMS = [
     Param("max_area", 1e-3, "mesh max triangle area (m^2); 1e-3 ~ 600 triangles, SPEC uses 5e-5",
           range=(1e-5, 1e-2), read_only=True),
     params.MATERIAL,
-    Param("friction", 0.5, "friction coefficient of every contact (-)", range=(0.0, 2.0), read_only=True),
+    Param("friction", DEFAULT_FRICTION, "friction coefficient of every contact (-)", range=(0.0, 2.0), read_only=True),
     Param("settle_time", 0.2, "settle time after release (s) when the fold spec gives none", range=(0.0, 10.0)),
-    Param("newton_tol", 1e-3, "Newton stop: RMS(|dx|)/dt (m/s)", range=(1e-8, 1.0), read_only=True),
+    Param("newton_tol", SimConfig.newton_tol, "Newton stop: RMS(|dx|)/dt (m/s)", range=(1e-8, 1.0), read_only=True),
     Param("max_newton_iterations", SimConfig.max_newton_iterations, "Newton iterations per step", range=(1, 10000), read_only=True),
     Param("max_loss", 0.05, "a fold with a larger loss (m) is reported as failed", range=(0.0, 10.0)),
     Param("state_period", 0.5, "publish the cloth state/marker/points at most this often (wall s)",
@@ -56,15 +57,12 @@ PARAMS = [
 class ClothSimNode(LockStepBackend):
     def __init__(self) -> None:
         super().__init__("cloth_sim_node", PARAMS)
-        from ..garment import make_shirt
-        from ..materials import material
-        from ..sim.runner import flat_start
+        from ..sim.scene import SceneSettings, build_scene
 
-        self.garment = make_shirt(params.value(self, "shape"), max_area=params.value(self, "max_area"))
-        self.material = material(params.value(self, "material"))
-        self.config = SimConfig(dt=params.value(self, "dt"), newton_tol=params.value(self, "newton_tol"),
-                                max_newton_iterations=params.value(self, "max_newton_iterations"))
-        self.flat = flat_start(self.garment, self.material)
+        self.scene = build_scene(SceneSettings(**{k: params.value(self, k) for k in (
+            "shape", "max_area", "material", "friction", "dt", "newton_tol", "max_newton_iterations")}))
+        self.garment, self.material, self.config = self.scene.garment, self.scene.material, self.scene.config
+        self.flat = self.scene.flat
         self.state_pub = self.create_publisher(ClothState, common.CLOTH_STATE, common.LATCHED)
         self.marker_pub = self.create_publisher(Marker, common.CLOTH_MARKER, common.LATCHED)
         self.points_pub = self.create_publisher(PointCloud2, common.CLOTH_POINTS, common.LATCHED)
@@ -81,10 +79,7 @@ class ClothSimNode(LockStepBackend):
     # -- cloth ------------------------------------------------------------------------------
     def reset(self) -> None:
         """Flat shirt, target = the flat shirt (the base of the first fold)."""
-        from ..sim.simulator import ClothSimulator
-
-        self.sim = ClothSimulator(self.flat, self.garment.triangles, self.material, params.value(self, "friction"),
-                                  self.config, rest=self.flat)
+        self.sim = self.scene.simulator()
         self.target_base = self.flat.copy()
         self.episode = None
         self.settle_pending = False
