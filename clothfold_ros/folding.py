@@ -19,6 +19,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .arrays import finite_array
 from .pose import Pose
 
 FOLD_NAMES: tuple[str, ...] = ("left_sleeve", "right_sleeve", "left_side", "right_side", "middle")
@@ -38,12 +39,7 @@ def fold_type(name: str) -> str:
 
 
 def _vec3(v: object, what: str) -> np.ndarray:
-    a = np.asarray(v, dtype=float)
-    if a.shape != (3,):
-        raise ValueError(f"{what} must be a 3-vector, got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{what} must be finite, got {a}")
-    return a
+    return finite_array(v, what, (3,))
 
 
 def _horizontal_unit(v: np.ndarray, what: str) -> np.ndarray:

@@ -11,16 +11,12 @@ import math
 
 import numpy as np
 
+from .arrays import finite_array
 from .folding import FoldSpec
 
 
 def _vertices(v: np.ndarray, what: str = "vertices") -> np.ndarray:
-    a = np.asarray(v, dtype=float)
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise ValueError(f"{what} must have shape (N, 3), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{what} contain NaN or inf")
-    return a
+    return finite_array(v, what, (-1, 3))
 
 
 def folded_mask(vertices: np.ndarray, spec: FoldSpec) -> np.ndarray:

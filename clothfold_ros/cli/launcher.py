@@ -22,6 +22,7 @@ from typing import IO, Sequence
 
 from ..nodes.backends import PIPELINE, backend as get_backend
 from ..nodes.resources import DEFAULT_PARAMS, work_dir
+from ..nodes.waiting import wait_until
 
 
 def _fmt(value: object) -> str:
@@ -140,22 +141,24 @@ class Launcher:
     def wait_for(self, proc: Process, pattern: str, timeout: float) -> re.Match:
         """Wait until a line of proc's output matches the regex; RuntimeError on timeout or exit."""
         rx = re.compile(pattern)
-        deadline = time.monotonic() + timeout
         seen = 0
-        with proc.cond:
-            while True:
-                for line in proc.lines[seen:]:
-                    m = rx.search(line)
-                    if m:
-                        return m
-                seen = len(proc.lines)
-                if not proc.alive() and not (proc.reader and proc.reader.is_alive()):
-                    raise RuntimeError(f"{proc.name} exited with code {proc.popen.returncode} before printing "
-                                       f"{pattern!r}; last output: {proc.lines[-5:]}")
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    raise RuntimeError(f"{proc.name} did not print {pattern!r} within {timeout:g} s")
-                proc.cond.wait(min(left, 0.2))
+
+        def probe() -> re.Match | None:
+            nonlocal seen
+            for line in proc.lines[seen:]:
+                m = rx.search(line)
+                if m:
+                    return m
+            seen = len(proc.lines)
+            if not proc.alive() and not (proc.reader and proc.reader.is_alive()):
+                raise RuntimeError(f"{proc.name} exited with code {proc.popen.returncode} before printing "
+                                   f"{pattern!r}; last output: {proc.lines[-5:]}")
+            return None
+
+        m = wait_until(proc.cond, probe, timeout, poll=0.2)
+        if m is None:
+            raise RuntimeError(f"{proc.name} did not print {pattern!r} within {timeout:g} s")
+        return m
 
     def check_alive(self) -> None:
         """RuntimeError naming every process that has exited."""

@@ -20,6 +20,7 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
 from . import conversions as rc
+from .waiting import wait_until
 from . import common
 
 
@@ -65,14 +66,11 @@ class PipelineClient:
 
     def wait_state(self, timeout: float, newer_than_ns: int = -1) -> ClothState:
         """The latest /cloth/state (stamped after newer_than_ns); TimeoutError."""
-        deadline = time.monotonic() + timeout
-        with self.cond:
-            while self.cloth_state is None or rc.time_to_ns(self.cloth_state.header.stamp) <= newer_than_ns:
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    raise TimeoutError(f"no cloth state on {common.CLOTH_STATE} within {timeout:g} s")
-                self.cond.wait(left)
-            return self.cloth_state
+        s = wait_until(self.cond, lambda: self.cloth_state if self.cloth_state is not None and rc.time_to_ns(
+            self.cloth_state.header.stamp) > newer_than_ns else None, timeout)
+        if s is None:
+            raise TimeoutError(f"no cloth state on {common.CLOTH_STATE} within {timeout:g} s")
+        return s
 
     def _on_clock(self, _msg: Clock) -> None:
         with self.cond:
@@ -90,14 +88,11 @@ class PipelineClient:
 
     def wait_keypoints(self, timeout: float, newer_than_ns: int = -1) -> Keypoints:
         """The latest keypoints (stamped after newer_than_ns); TimeoutError."""
-        deadline = time.monotonic() + timeout
-        with self.cond:
-            while self.keypoints is None or rc.time_to_ns(self.keypoints.header.stamp) <= newer_than_ns:
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    raise TimeoutError(f"no keypoints on {common.KEYPOINTS} within {timeout:g} s")
-                self.cond.wait(min(left, 0.2))
-            return self.keypoints
+        k = wait_until(self.cond, lambda: self.keypoints if self.keypoints is not None and rc.time_to_ns(
+            self.keypoints.header.stamp) > newer_than_ns else None, timeout, poll=0.2)
+        if k is None:
+            raise TimeoutError(f"no keypoints on {common.KEYPOINTS} within {timeout:g} s")
+        return k
 
     def plan(self, fold_name: str, execute: bool = True, timeout: float = 30.0,
              wait_for_keypoints: bool = True, retry_refused: float = 0.0) -> PlanFold.Response:
@@ -156,16 +151,11 @@ class PipelineClient:
 
     def wait_result(self, fold_name: str, timeout: float, after: int = 0) -> FoldResult:
         """The first /fold/result for fold_name among results received after the first `after`."""
-        deadline = time.monotonic() + timeout
-        with self.cond:
-            while True:
-                for r in self.results[after:]:
-                    if r.fold_name == fold_name:
-                        return r
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    raise TimeoutError(f"no {common.FOLD_RESULT} for {fold_name} within {timeout:g} s")
-                self.cond.wait(min(left, 0.5))
+        r = wait_until(self.cond, lambda: next((r for r in self.results[after:] if r.fold_name == fold_name), None),
+                       timeout, poll=0.5)
+        if r is None:
+            raise TimeoutError(f"no {common.FOLD_RESULT} for {fold_name} within {timeout:g} s")
+        return r
 
     def close(self) -> None:
         try:

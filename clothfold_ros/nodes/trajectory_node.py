@@ -43,6 +43,7 @@ from ..trajectory import FoldTrajectory
 from . import common, params
 from .limits import check_plan, check_trajectory, check_workspace_params
 from .params import Param
+from .waiting import wait_until
 
 PARAMS = [
     Param("rate", 100.0, "target pose stream rate (Hz)", range=(1.0, 1000.0)),
@@ -277,16 +278,12 @@ class TrajectoryNode(Node):
         return ExecuteFold.Result(success=ok, message=msg, result=result)
 
     def _wait_result(self, name: str, t0: int, timeout: float) -> FoldResult | None:
-        deadline = time.monotonic() + timeout
-        with self.results_cv:
-            while True:
-                for r in self.results:
-                    if r.fold_name == name and rc.time_to_ns(r.header.stamp) >= t0:
-                        return r
-                left = deadline - time.monotonic()
-                if left <= 0 or not self.context.ok():
-                    return None
-                self.results_cv.wait(min(left, 0.5))
+        def probe() -> FoldResult | bool | None:  # False: shutting down, stop waiting
+            r = next((r for r in self.results if r.fold_name == name and rc.time_to_ns(r.header.stamp) >= t0), None)
+            return r if r is not None else (None if self.context.ok() else False)
+
+        r = wait_until(self.results_cv, probe, timeout, poll=0.5)
+        return None if r is False else r
 
 
 def main(argv: list[str] | None = None) -> int:
