@@ -127,7 +127,7 @@ def wait_line(p: subprocess.Popen, text: str, timeout: float) -> str:
 
 def recorder(procs, env, out: Path, *extra: str) -> subprocess.Popen:
     p = procs([sys.executable, "-m", "clothfold_ros.nodes.recorder_node", "--output", str(out),
-               "--exclude", "^/(rosout|parameter_events)$", *extra], env, "recorder")
+               "--exclude", "^/(rosout|parameter_events)$", "--no-tf", *extra], env, "recorder")
     wait_line(p, f"recording to {out}", 30)
     return p
 

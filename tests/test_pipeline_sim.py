@@ -34,10 +34,10 @@ def test_sim_pipeline_equals_run_fold_and_tracks_the_cloth(pipeline):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from visualization_msgs.msg import Marker
 
-    markers = []
-    client.node.create_subscription(Marker, "/cloth/marker", markers.append,
-                                    QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                                               durability=DurabilityPolicy.VOLATILE))
+    markers, grippers = [], []
+    qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+    client.node.create_subscription(Marker, "/cloth/marker", markers.append, qos)
+    client.node.create_subscription(Marker, "/gripper_0/marker", grippers.append, qos)
     flat, _ = keypoints_from_msg(client.wait_keypoints(120))
     resp = client.plan("left_sleeve", execute=True, timeout=60)
     assert resp.success, resp.message
@@ -57,6 +57,12 @@ def test_sim_pipeline_equals_run_fold_and_tracks_the_cloth(pipeline):
     stamps = {m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in list(markers)}
     moving = [s for s in stamps if s > t0]
     assert len(moving) >= 0.9 * res.steps, (len(moving), res.steps)
+    # the gripper drawn as its grasp box at every step: closed (red) while it moves, open (green) at the end
+    closed = {m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in list(grippers)
+              if m.type == Marker.CUBE and m.color.r > m.color.g}
+    assert len(closed) >= 0.9 * res.steps, (len(closed), res.steps)
+    assert all((m.scale.x, m.scale.y, m.scale.z) == (0.05, 0.12, 0.05) for m in list(grippers))
+    assert grippers[-1].color.g > grippers[-1].color.r
 
     # keypoints now come from the folded cloth: the left cuff moved onto the shirt
     folded, _ = keypoints_from_msg(client.wait_keypoints(60, newer_than_ns=0))

@@ -12,6 +12,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--exclude", default=None, help="regex: skip matching topics")
     p.add_argument("--include-hidden", action="store_true", help="also record hidden topics")
     p.add_argument("--force", action="store_true", help="overwrite an existing bag")
+    p.add_argument("--no-tf", action="store_true", help="write no /tf_static and /tf frames (docs/recording.md)")
+    p.add_argument("--static-tf", nargs=9, action="append", default=[],
+                   metavar=("PARENT", "CHILD", "X", "Y", "Z", "QX", "QY", "QZ", "QW"),
+                   help="one more fixed frame in /tf_static (m, quaternion x y z w)")
     p.set_defaults(func=run)
 
 
@@ -30,4 +34,8 @@ def run(args: argparse.Namespace) -> int:
         argv += ["--exclude", args.exclude]
     if args.include_hidden:
         argv.append("--include-hidden")
+    if args.no_tf:
+        argv.append("--no-tf")
+    for st in args.static_tf:
+        argv += ["--static-tf", *st]
     return main(argv)

@@ -9,6 +9,11 @@ finger opening in m) and /fold/result. Time advances by `LockStep` rules: a step
 only once the target stamped t + dt of every closed gripper is there; while every gripper
 is open the clock runs at real_time_factor. Subclasses implement the physics hooks.
 
+For a person watching (Foxglove): /gripper_<i>/marker (visualization_msgs/Marker CUBE, latched)
+draws each gripper as its grasp box (GRIPPER_BOX along the gripper x, y, z axes) at its pose,
+red while closed, green while open, at every step and at every open/close; a gripper is drawn
+from its first close on (where it opened, it stays).
+
 What the backend refuses (logged through ErrorLog, never silently): targets in another frame,
 NaN poses or efforts, targets for a gripper that is open with no fold running, announced or
 pending for it (idle), a close command with no target pose at its stamp and no fold announced
@@ -27,6 +32,8 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker
 
 from . import conversions as rc
 from ..pose import Pose
@@ -35,6 +42,19 @@ from .errorlog import ErrorLog
 from .limits import check_step, check_workspace_params
 from .lockstep import STAMP_TOLERANCE_NS, LockStep
 from .params import Param
+
+GRIPPER_BOX = (0.05, 0.12, 0.05)  # m along the gripper x, y, z: the grasp box (sim/grasp.py GRASP_BOX)
+GRIPPER_COLOURS = {True: (0.9, 0.2, 0.2, 0.8), False: (0.2, 0.8, 0.3, 0.6)}  # closed: red, open: green
+
+
+def gripper_marker(i: int, pose: Pose, closed: bool, stamp_ns: int) -> Marker:
+    """visualization_msgs/Marker CUBE of gripper i: the grasp box at its pose (table frame)."""
+    r, g, b, a = GRIPPER_COLOURS[bool(closed)]
+    m = Marker(header=rc.header(stamp_ns), ns="gripper", id=i, type=Marker.CUBE, action=Marker.ADD,
+               pose=rc.pose_to_msg(pose), color=ColorRGBA(r=r, g=g, b=b, a=a), text=f"gripper_{i}")
+    m.scale.x, m.scale.y, m.scale.z = GRIPPER_BOX
+    return m
+
 
 BACKEND_PARAMS = [
     params.N_GRIPPERS,
@@ -71,6 +91,9 @@ class LockStepBackend(Node):
                           for i in range(self.n)]
         self.state_pubs = [self.create_publisher(JointState, common.gripper_topic(i, "state"), common.FEEDBACK)
                            for i in range(self.n)]
+        self.marker_pubs = [self.create_publisher(Marker, common.gripper_topic(i, "marker"), common.LATCHED)
+                            for i in range(self.n)]
+        self.drawn: dict[int, Pose] = {}  # where each gripper is drawn: its last pose (kept after it opens)
         for i in range(self.n):
             self.create_subscription(PoseStamped, common.gripper_topic(i, "target_pose"),
                                      lambda m, i=i: self.on_target(i, m), common.TARGETS)
@@ -177,6 +200,13 @@ class LockStepBackend(Node):
         closed = i in self.ls.closed
         self.state_pubs[i].publish(JointState(header=rc.header(self.ls.now_ns, ""), name=[f"gripper_{i}"],
                                               position=[0.0 if closed else float(self.opening[i])]))
+        self.publish_gripper_markers([i])
+
+    def publish_gripper_markers(self, grippers=None) -> None:
+        """The grasp-box marker of each given gripper (default: all) that has a pose to draw."""
+        for i in (range(self.n) if grippers is None else grippers):
+            if i in self.drawn:
+                self.marker_pubs[i].publish(gripper_marker(i, self.drawn[i], i in self.ls.closed, self.ls.now_ns))
 
     def on_tick(self) -> None:
         wall = time.monotonic()
@@ -226,6 +256,7 @@ class LockStepBackend(Node):
                         self.on_close(cmd.gripper, pose)
                         self.ls.close(cmd.gripper)
                         self.last_pose[cmd.gripper] = pose
+                        self.drawn[cmd.gripper] = pose
                         self.publish_gripper_state(cmd.gripper)
                 else:
                     self.ls.pop_command()
@@ -258,6 +289,8 @@ class LockStepBackend(Node):
                 self._budget_ns -= self.ls.dt_ns
                 for g, p in targets.items():
                     self.pose_pubs[g].publish(rc.pose_stamped(p, self.ls.now_ns))
+                self.drawn.update(targets)
+                self.publish_gripper_markers()  # every gripper at every step
                 self.publish_clock()
                 if self.heavy_steps():
                     break
@@ -302,6 +335,7 @@ class LockStepBackend(Node):
                 pass
         self.ls.abort()
         self.last_pose.clear()
+        self.publish_gripper_markers()  # drawn open
         self.on_abort()
         self.publish_result(False, reason, math.nan)
         self.active = None

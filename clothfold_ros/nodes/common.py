@@ -30,7 +30,7 @@ EXECUTE_FOLD = "/execute_fold"
 
 
 def gripper_topic(i: int, leaf: str) -> str:
-    """/gripper_<i>/<leaf>: leaf is target_pose, command, pose, path or state."""
+    """/gripper_<i>/<leaf>: leaf is target_pose, command, pose, path, state or marker."""
     return f"/gripper_{i}/{leaf}"
 
 

@@ -8,6 +8,13 @@ effort when any is best effort); the publishers' offered QoS and type hash are s
 Prints ``recording to PATH`` (flushed) once ready and ``bag closed: PATH (N messages)``
 after SIGINT/SIGTERM; a SIGKILL loses at most the last ~``--chunk-age`` s (see
 ``clothfold bag recover``). Topics that cannot be recorded are listed, never dropped silently.
+
+Frames: tf2_msgs is not in the PyPI wheels, so the nodes publish no /tf; the recorder writes
+them into the bag (unless ``--no-tf``): at the start one latched /tf_static
+(tf2_msgs/msg/TFMessage) with world -> table and every ``--static-tf``, and for every recorded
+``/gripper_<i>/pose`` (geometry_msgs/PoseStamped) a /tf message <its frame> -> gripper_<i>
+with the same stamp and log time. Live /tf and /tf_static publishers (a real install) are
+recorded into the same channels. See docs/recording.md.
 """
 from __future__ import annotations
 
@@ -23,9 +30,13 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.utilities import remove_ros_args
 
 from ..bag import BagError, BagWriter, from_profile, message_definition
+from ..bag.tf import (TF_QOS, TF_STATIC_QOS, TF_STATIC_TOPIC, TF_TOPIC, TF_TYPE, Transform, encode_tf_message,
+                      tf_definition)
 from .common import run
 
 SUBSCRIBE_DEPTH = 1000  # queue of received, not yet written messages per topic
+ROOT_TRANSFORM = ("world", "table")  # /tf_static: the fixed root above the table frame every message uses
+GRIPPER_POSE = re.compile(r"^/(gripper_\d+)/pose$")  # PoseStamped -> /tf <frame_id> -> gripper_<i>
 
 
 def message_class(type_name: str) -> Any:
@@ -52,7 +63,8 @@ class RecorderNode(Node):
     """Discovers topics, subscribes raw and writes every message to a BagWriter."""
 
     def __init__(self, output: str, topics: list[str] | None = None, exclude: str | None = None,
-                 include_hidden: bool = False, discovery_period: float = 0.5, chunk_age: float = 1.0) -> None:
+                 include_hidden: bool = False, discovery_period: float = 0.5, chunk_age: float = 1.0,
+                 tf: bool = True, static_tf: list[Transform] | None = None) -> None:
         super().__init__("clothfold_recorder")
         self.output = output
         self.wanted = None if not topics else {t if t.startswith("/") else "/" + t for t in topics}
@@ -61,6 +73,10 @@ class RecorderNode(Node):
         self.writer = BagWriter(output, overwrite=True, max_chunk_age=chunk_age)
         self.subs: dict[str, Any] = {}
         self.skipped: dict[str, str] = {}  # topic -> reason it is not recorded
+        self.tf = tf and self._selected(TF_TOPIC)
+        self._tf_warned: set[str] = set()
+        if tf and self._selected(TF_STATIC_TOPIC):
+            self._write_static_tf(static_tf or [])
         self.discover()
         self.create_timer(discovery_period, self.discover)
         self.create_timer(max(0.05, chunk_age / 4), self.writer.flush_if_due)
@@ -115,6 +131,37 @@ class RecorderNode(Node):
             self.writer.add_topic(topic, type_name, [from_profile(p.qos_profile) for p in pubs], type_hash=type_hash,
                                   definition=message_definition(type_name).text)
         self.writer.write(topic, data, log_ns, pub_ns)
+        if self.tf and type_name == "geometry_msgs/msg/PoseStamped" and (m := GRIPPER_POSE.match(topic)):
+            self._write_gripper_tf(m.group(1), data, log_ns, pub_ns)
+
+    # -- frames (tf2_msgs is not installed from the wheels: written here) ------------------
+    def _add_tf_topic(self, topic: str, qos) -> None:
+        if topic not in self.writer.topics:
+            text, type_hash = tf_definition()
+            self.writer.add_topic(topic, TF_TYPE, [qos], definition=text, type_hash=type_hash)
+
+    def _write_static_tf(self, extra: list[Transform]) -> None:
+        self._add_tf_topic(TF_STATIC_TOPIC, TF_STATIC_QOS)
+        frames = [Transform(*ROOT_TRANSFORM, 0), *extra]
+        self.writer.write(TF_STATIC_TOPIC, encode_tf_message(frames), time.time_ns())
+
+    def _write_gripper_tf(self, child: str, data: bytes, log_ns: int, pub_ns: int) -> None:
+        from geometry_msgs.msg import PoseStamped
+        from rclpy.serialization import deserialize_message
+
+        try:
+            m = deserialize_message(data, PoseStamped)
+            p, q = m.pose.position, m.pose.orientation
+            t = Transform(m.header.frame_id or ROOT_TRANSFORM[1], child,
+                          m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec,
+                          (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+        except (BagError, ValueError, TypeError) as err:
+            if child not in self._tf_warned:  # once per gripper; the pose itself is recorded
+                self._tf_warned.add(child)
+                self.get_logger().warning(f"no /tf for {child}: {err}")
+            return
+        self._add_tf_topic(TF_TOPIC, TF_QOS)
+        self.writer.write(TF_TOPIC, encode_tf_message([t]), log_ns, pub_ns)
 
     def destroy_node(self) -> None:
         """Close the bag (complete file with summary) and report."""
@@ -137,7 +184,21 @@ def build_parser(prog: str = "recorder_node") -> argparse.ArgumentParser:
     p.add_argument("--include-hidden", action="store_true", help="also record hidden topics (e.g. /x/_action/...)")
     p.add_argument("--discovery-period", type=float, default=0.5, help="topic discovery period (s)")
     p.add_argument("--chunk-age", type=float, default=1.0, help="max age of unwritten data (s), bounds kill loss")
+    p.add_argument("--no-tf", action="store_true",
+                   help="do not write /tf_static (world -> table) and /tf (table -> gripper_<i>, from /gripper_<i>/pose)")
+    p.add_argument("--static-tf", nargs=9, action="append", default=[],
+                   metavar=("PARENT", "CHILD", "X", "Y", "Z", "QX", "QY", "QZ", "QW"),
+                   help="one more fixed frame in /tf_static (m, quaternion), e.g. a camera: table camera 0 0 1 1 0 0 0")
     return p
+
+
+def static_transforms(values: list[list[str]]) -> list[Transform]:
+    """--static-tf arguments as Transforms (ValueError/BagError for a bad one)."""
+    out = []
+    for parent, child, *nums in values:
+        v = [float(x) for x in nums]
+        out.append(Transform(parent, child, 0, tuple(v[:3]), tuple(v[3:])))
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -149,10 +210,15 @@ def main(argv: list[str] | None = None) -> int:
         except re.error as err:
             print(f"recorder_node: bad --exclude regex: {err}", file=sys.stderr)
             return 2
+    try:
+        static = static_transforms(args.static_tf)
+    except (ValueError, BagError) as err:
+        print(f"recorder_node: bad --static-tf: {err}", file=sys.stderr)
+        return 2
 
     def recorder_node() -> RecorderNode:
         return RecorderNode(args.output, args.topics, args.exclude, args.include_hidden, args.discovery_period,
-                            args.chunk_age)
+                            args.chunk_age, tf=not args.no_tf, static_tf=static)
 
     return run(recorder_node, full)
 
