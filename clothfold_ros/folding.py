@@ -22,9 +22,36 @@ from scipy.spatial.transform import Rotation
 from .arrays import finite_array
 from .pose import Pose
 
-FOLD_NAMES: tuple[str, ...] = ("left_sleeve", "right_sleeve", "left_side", "right_side", "middle")
+
+@dataclass(frozen=True)
+class FoldKind:
+    """A fold type: its geometry branch in `fold_spec`, the folded layer's offset in the
+    target (x cloth thickness) and its code in the scenario features (lookup/scenario.py)."""
+
+    name: str
+    layer_offset_factor: float
+    feature_code: float
+
+
+@dataclass(frozen=True)
+class Fold:
+    """A named fold: its type and its stage group in the lookup tables (0 first sleeve,
+    1 second sleeve, 2 the side folds, 3 the middle fold)."""
+
+    name: str
+    kind: str
+    stage_group: int
+
+
+#: The fold registry: the one place a fold (type) is named. In sequence order.
+FOLD_KINDS: dict[str, FoldKind] = {k.name: k for k in (
+    FoldKind("sleeve", 2.0, 0.0), FoldKind("side", 3.0, 1.0), FoldKind("middle", 4.0, 2.0))}
+FOLDS: dict[str, Fold] = {f.name: f for f in (
+    Fold("left_sleeve", "sleeve", 0), Fold("right_sleeve", "sleeve", 1), Fold("left_side", "side", 2),
+    Fold("right_side", "side", 2), Fold("middle", "middle", 3))}
+FOLD_NAMES: tuple[str, ...] = tuple(FOLDS)
 FOLD_SEQUENCE: tuple[str, ...] = FOLD_NAMES  # the order a shirt is folded in
-LAYER_OFFSET_FACTOR: dict[str, float] = {"sleeve": 2.0, "side": 3.0, "middle": 4.0}  # x thickness
+LAYER_OFFSET_FACTOR: dict[str, float] = {k.name: k.layer_offset_factor for k in FOLD_KINDS.values()}  # x thickness
 MIN_GRIPPER_LINE_DISTANCE = 1e-3  # m
 SLEEVE_LINE_ANGLE_DEG = 30.0  # sleeve fold line vs the side seam
 
@@ -33,9 +60,9 @@ _UP = np.array([0.0, 0.0, 1.0])
 
 def fold_type(name: str) -> str:
     """'sleeve', 'side' or 'middle' for a name in FOLD_NAMES (ValueError otherwise)."""
-    if name not in FOLD_NAMES:
+    if name not in FOLDS:
         raise ValueError(f"unknown fold {name!r}; known folds: {', '.join(FOLD_NAMES)}")
-    return name.rsplit("_", 1)[-1]
+    return FOLDS[name].kind
 
 
 def _vec3(v: object, what: str) -> np.ndarray:

@@ -238,3 +238,12 @@ def test_folds_done_keeps_the_flat_lines_and_grasps():
                                atol=1e-12)
     with pytest.raises(ValueError, match="unknown folds in folds_done: collar"):
         fold_spec("middle", kp, folds_done=["collar"])
+
+
+def test_fold_names_and_their_uses_come_from_the_registry():
+    from clothfold_ros.folding import FOLD_KINDS, FOLDS, fold_type
+    from clothfold_ros.lookup.scenario import STAGE_OF_FOLD
+
+    assert FOLD_NAMES == tuple(FOLDS) and all(f.kind in FOLD_KINDS for f in FOLDS.values())
+    assert STAGE_OF_FOLD == {n: f.stage_group for n, f in FOLDS.items()}
+    assert {n: fold_type(n) for n in FOLD_NAMES} == {n: f.kind for n, f in FOLDS.items()}

@@ -11,13 +11,13 @@ from typing import Mapping
 
 import numpy as np
 
-from ..folding import FOLD_NAMES, fold_spec, fold_type
+from ..folding import FOLD_KINDS, FOLD_NAMES, FOLDS, fold_spec, fold_type
 from ..garment import SHAPES, shirt_outline, KEYPOINT_NAMES
 from ..materials import MATERIALS, material
 
 #: Stage groups of the fold sequence: 0 first sleeve on a flat shirt, 1 second sleeve
 #: ("both sleeves"), 2 the side folds ("both sides"), 3 the middle fold.
-STAGE_OF_FOLD: dict[str, int] = {"left_sleeve": 0, "right_sleeve": 1, "left_side": 2, "right_side": 2, "middle": 3}
+STAGE_OF_FOLD: dict[str, int] = {n: f.stage_group for n, f in FOLDS.items()}  # from the fold registry
 
 #: Feature names, their units and the scale that makes one unit of normalized distance.
 FEATURE_SCALES: dict[str, float] = {
@@ -32,7 +32,7 @@ FEATURE_SCALES: dict[str, float] = {
     "fold_type": 0.2,  # 0 sleeve / 1 side / 2 middle: a different fold type is 5 units away
 }
 FEATURE_NAMES: tuple[str, ...] = tuple(FEATURE_SCALES)
-_FOLD_TYPE_CODE = {"sleeve": 0.0, "side": 1.0, "middle": 2.0}
+_FOLD_TYPE_CODE = {k.name: k.feature_code for k in FOLD_KINDS.values()}
 
 
 @dataclass(frozen=True)
