@@ -81,8 +81,8 @@ def run(args: argparse.Namespace) -> int:
         overrides["fold_planner_node"] = {"selection": args.selection}
     if args.sequence:
         # Tables exist for the sleeve stages only (docs/lookup.md): the side and middle folds
-        # use the planner's parameters (h 0.45, tilt 0: the pair the headless sequence was
-        # checked with), and a stage fails only when its loss against the composed target
+        # take the nearest table's choice, or the planner's parameters (h 0.45, tilt 0) if no
+        # table can be used; a stage fails only when its loss against the composed target
         # exceeds sequence_max_loss (errors of earlier stages are part of that loss).
         overrides.setdefault("fold_planner_node", {}).update(fallback_to_parameters=True, height_ratio=0.45,
                                                               tilt_deg=0.0)

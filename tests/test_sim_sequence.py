@@ -1,0 +1,29 @@
+"""The five-fold sequence headless on a coarse mesh: every stage, side and middle folds from
+folded states included, completes; each is planned from the visible keypoints of the cloth."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from clothfold_ros.sim.scene import SceneSettings, build_scene
+from clothfold_ros.sim.sequence import run_sequence
+
+CHOICES = {"left_sleeve": (0.723, 30.0), "right_sleeve": (1.0, 17.6), "left_side": (0.45, 0.0),
+           "right_side": (0.45, 0.0), "middle": (0.45, 0.0)}
+
+
+def test_the_five_folds_complete_from_the_cloth_as_it_is():
+    scene = build_scene(SceneSettings(max_area=2e-3))
+    results = run_sequence(scene, CHOICES)
+    assert [r.fold for r in results] == list(CHOICES)
+    for r in results:
+        assert r.outcome.success, (r.fold, r.outcome.reason)
+        assert math.isfinite(r.outcome.loss)
+    # the middle fold grasps the hem at its folded edges: inside the flat hem, one each side
+    flat_kp = scene.garment.keypoints(scene.flat)
+    half = abs(flat_kp["bottom_right"][0] - flat_kp["bottom_left"][0]) / 2
+    grips = np.array([p.position[0] for p in results[-1].spec.start_poses])
+    assert grips.min() < 0.0 < grips.max() and np.all(np.abs(grips) < half - 0.02), grips
+    # later stages start from where the previous one ended
+    assert not np.allclose(results[2].outcome.vertices, scene.flat)
