@@ -22,6 +22,7 @@ class SimConfig:
     grasp_slip: float = 2e-3  # m: held cloth farther than this from its grip point slips in the grip
     psd_projection: str = "clamp"  # "clamp" or "abs": negative membrane eigenvalues set to 0 or |.|
     pattern_growth_rings: int = 1  # a new contact pair also adds its neighbours' pairs (rings) to the pattern
+    defer_pattern_growth: bool = True  # after a solve's first iteration, new pairs wait for the next solve
     linear_solver: str = "auto"  # "pardiso", "superlu" or "auto" (PARDISO when MKL is there)
     xi: float | None = None  # m, minimum mid-surface separation (offset)
     dhat: float | None = None  # m, barrier activation distance beyond xi

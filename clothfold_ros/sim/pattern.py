@@ -59,6 +59,7 @@ class HessianPattern:
     def __init__(self, ndof: int, blocks: list[np.ndarray], triangles: np.ndarray | None = None,
                  growth_rings: int = 1) -> None:
         self.ndof = ndof
+        self.pending = np.zeros(0, dtype=np.int64)  # contact entries deferred by contact_slots(grow=False)
         self._rings = None
         if triangles is not None and growth_rings > 0:
             nv = ndof // 3
@@ -108,10 +109,15 @@ class HessianPattern:
             self.block_slots[i] = np.where(slots >= 0, old_to_new[slots], -1)
         self.version += 1
 
-    def contact_slots(self, hessian: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, bool]:
+    def contact_slots(self, hessian: sp.spmatrix, grow: bool = True) -> tuple[np.ndarray, np.ndarray, bool]:
         """Slots and values of the upper entries of a symmetric sparse contact Hessian.
 
-        Grows the pattern by entries it lacks; the third value says whether it grew.
+        grow: entries the pattern lacks are added (the third value says it grew). Otherwise
+        the pattern stays: each missing off-diagonal vertex block B (between vertices i, j)
+        is dropped and ||B||_F is added to the diagonal of both vertices instead. That
+        matrix is the Hessian plus a PSD term (the eigenvalues of [[0, B], [B^T, 0]] are
+        +-sigma(B) <= ||B||_F), so it stays SPD and Newton keeps a descent direction; the
+        missing entries wait in `pending` until `grow_pending`.
         """
         coo = hessian.tocoo()
         upper = coo.row <= coo.col
@@ -120,15 +126,41 @@ class HessianPattern:
         slots = np.searchsorted(self.keys, keys)
         slots_c = np.minimum(slots, self.nnz - 1)
         missing = self.keys[slots_c] != keys
-        grew = bool(missing.any())
-        if grew:
-            new = np.unique(keys[missing])
-            if self._rings is not None:
-                new = np.union1d(new, self._neighbour_keys(new))
-                new = new[self.keys[np.minimum(np.searchsorted(self.keys, new), self.nnz - 1)] != new]
-            self._insert(new)
-            slots = np.searchsorted(self.keys, keys)
-        return slots, vals, grew
+        if not missing.any():
+            return slots, vals, False
+        if grow:
+            self._insert(self._with_neighbours(np.unique(keys[missing])))
+            return np.searchsorted(self.keys, keys), vals, True
+        miss_keys, miss_vals = keys[missing], vals[missing]
+        self.pending = np.union1d(self.pending, miss_keys)
+        rows, cols = miss_keys // self.ndof, miss_keys % self.ndof
+        pair = (rows // 3) * (self.ndof // 3) + cols // 3
+        uniq, inv = np.unique(pair, return_inverse=True)
+        norm = np.sqrt(np.bincount(inv, weights=miss_vals**2))
+        nv = self.ndof // 3
+        bump = np.bincount(np.concatenate([uniq // nv, uniq % nv]), weights=np.concatenate([norm, norm]),
+                           minlength=nv)
+        keep = ~missing
+        diag = np.repeat(bump, 3)
+        return (np.concatenate([slots[keep], self.diag_slots]), np.concatenate([vals[keep], diag]), False)
+
+    def grow_pending(self) -> bool:
+        """Add the entries deferred by contact_slots(grow=False); True if the pattern grew."""
+        if not len(self.pending):
+            return False
+        new = self._with_neighbours(self.pending)
+        self.pending = np.zeros(0, dtype=np.int64)
+        if not len(new):
+            return False
+        self._insert(new)
+        return True
+
+    def _with_neighbours(self, new: np.ndarray) -> np.ndarray:
+        """Keys absent from the pattern among `new` and, with growth rings, their neighbours' pairs."""
+        if self._rings is not None:
+            new = np.union1d(new, self._neighbour_keys(new))
+        present = self.keys[np.minimum(np.searchsorted(self.keys, new), self.nnz - 1)] == new
+        return new[~present]
 
     def _neighbour_keys(self, keys: np.ndarray) -> np.ndarray:
         """Upper DOF keys of every vertex pair (a', b'), a' near a, b' near b, for the pairs in keys."""

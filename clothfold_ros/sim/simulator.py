@@ -333,8 +333,10 @@ class ClothSimulator:
             grad += self.contact.gradient(col, x, u)
             contact = None
             hc = self.contact.hessian(col, x, u)
+            if it == 1:  # new contact pairs enter the pattern (one symbolic analysis) once per solve
+                self._pattern.grow_pending()
             if hc is not None:
-                slots, vals, _ = self._pattern.contact_slots(hc)
+                slots, vals, _ = self._pattern.contact_slots(hc, grow=it == 1 or not cfg.defer_pattern_growth)
                 contact = (slots, vals)
             phases["contact_derivatives"] += time.perf_counter() - tic
             tic = time.perf_counter()
