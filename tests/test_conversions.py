@@ -99,6 +99,11 @@ def test_cloth_state_round_trip_and_errors(shirt):
     bad.keypoint_vertex_ids = np.asarray(bad.keypoint_vertex_ids)[:-1]
     with pytest.raises(ValueError, match="keypoint"):
         rc.cloth_state_from_msg(bad)
+    bad = rc.cloth_state_to_msg(v, tri, shirt.keypoint_ids, 3e-4, 7)
+    names = list(bad.keypoint_names)
+    bad.keypoint_names = names[:-1] + names[:1]  # a name twice: never collapsed into one
+    with pytest.raises(ValueError, match="duplicate keypoint names"):
+        rc.cloth_state_from_msg(bad)
 
 
 def test_display_messages(shirt):
