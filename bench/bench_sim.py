@@ -13,7 +13,7 @@ ratios to the baseline and to the targets (20 s at ~3K triangles, 90 s at ~12K).
 `--fan-area` and prints the Spearman rank correlation of their losses.
 
     python bench/bench_sim.py [--areas 2e-4 5e-5] [--baseline a11945f | --no-baseline]
-                              [--no-reference] [--fan 8 --fan-area 5e-4]
+                              [--no-reference] [--fan 8 --fan-area 5e-4 [--fan-only]]
 """
 from __future__ import annotations
 
@@ -125,8 +125,10 @@ def main() -> None:
     ap.add_argument("--baseline", default="a11945f", help="earlier commit to compare against")
     ap.add_argument("--no-baseline", action="store_true")
     ap.add_argument("--no-reference", action="store_true")
+    ap.add_argument("--baseline-only", action="store_true", help="only the comparison with the earlier solver")
     ap.add_argument("--fan", type=int, default=0, help="also check this many fan points against the reference")
     ap.add_argument("--fan-area", type=float, default=5e-4)
+    ap.add_argument("--fan-only", action="store_true", help="only the fan-subset check")
     args = ap.parse_args()
     sys.path.insert(0, str(ROOT))
     from clothfold_ros.sim.config import SimConfig
@@ -137,19 +139,20 @@ def main() -> None:
     print(f"reference: the same with newton_tol = {tol / TIGHTEN:g} m/s, max_newton_iterations = 3000")
     with tempfile.TemporaryDirectory(prefix="bench_sim_") as d:
         tmp = Path(d)
-        base = None if args.no_baseline else worktree(args.baseline, tmp)
+        base = None if args.no_baseline or args.fan_only else worktree(args.baseline, tmp)
         try:
-            for area in args.areas:
-                fast = run_worker(ROOT, area, *FAN_POINT, tol, cfg.max_newton_iterations, tmp)
-                print(f"\n== {fast['triangles']} triangles (max area {area:g} m^2), left sleeve, fan point "
-                      f"h {FAN_POINT[0]}, tilt {FAN_POINT[1]} deg", flush=True)
-                print(describe("fast", fast), flush=True)
-                if area in TARGETS:
-                    print(f"             ratio to target ({TARGETS[area]:.0f} s): {fast['wall'] / TARGETS[area]:.2f}")
-                if not args.no_reference:
+            for area in ([] if args.fan_only else args.areas):
+                print(f"\n== max area {area:g} m^2, left sleeve", flush=True)
+                if not args.baseline_only:
+                    fast = run_worker(ROOT, area, *FAN_POINT, tol, cfg.max_newton_iterations, tmp)
+                    print(f"  {fast['triangles']} triangles, fan point h {FAN_POINT[0]}, tilt {FAN_POINT[1]} deg")
+                    print(describe("fast", fast), flush=True)
+                    if area in TARGETS:
+                        print(f"             ratio to target ({TARGETS[area]:.0f} s): {fast['wall'] / TARGETS[area]:.2f}")
+                if not (args.no_reference or args.baseline_only):
                     ref = run_worker(ROOT, area, *FAN_POINT, tol / TIGHTEN, 3000, tmp)
                     print(describe("reference", ref), flush=True)
-                    if fast["ok"] and ref["ok"]:
+                    if fast["ok"] and ref["ok"]:  # noqa: SIM102
                         dist = np.linalg.norm(fast["final"] - ref["final"], axis=1)
                         print(f"             fast - reference: loss {1000 * (fast['loss'] - ref['loss']):+.2f} mm; final meshes "
                               f"{dist.mean() * 1000:.2f} mm mean, {dist.max() * 1000:.2f} mm max per vertex")
