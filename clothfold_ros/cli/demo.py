@@ -34,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sequence", action="store_true", help="fold the whole sequence: " + ", ".join(FOLD_SEQUENCE))
     p.add_argument("--sequence-max-loss", type=float, default=0.15,
                    help="with --sequence: largest loss (m) against the composed target a stage may end with (default 0.15)")
-    p.add_argument("--max-area", type=float, default=5e-4, help="sim mesh max triangle area (m^2; default 5e-4, about 1.2K triangles)")
+    p.add_argument("--max-area", type=float, default=None,
+                   help="sim mesh max triangle area (m^2; default 5e-4, about 1.2K triangles; with --sequence 2e-4, about 3K)")
     p.add_argument("--selection", choices=("table", "parameter"), default=None,
                    help="(height ratio, tilt) from the lookup table or the parameters (default: config file)")
     p.add_argument("--bags", type=Path, default=Path("bags"),
@@ -76,6 +77,8 @@ def run(args: argparse.Namespace) -> int:
     domain = args.domain_id if args.domain_id is not None else 100 + os.getpid() % 50
     os.environ["ROS_DOMAIN_ID"] = str(domain)  # the in-process client joins the same domain
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    if args.max_area is None:
+        args.max_area = 2e-4 if args.sequence else 5e-4
     overrides: dict[str, dict] = {"cloth_sim_node": {"max_area": args.max_area}}
     if args.selection:
         overrides["fold_planner_node"] = {"selection": args.selection}
