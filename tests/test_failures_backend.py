@@ -142,7 +142,9 @@ def _announce(r, t0_ns: int, duration: float):
 def _fold(r, duration: float, open_after: float, jump_at: int | None = None) -> object:
     """Announce a one-gripper fold of `duration` s starting 0.6 s ahead, close, stream a slow straight
     line of targets every dt (position x = 50 m at step jump_at), open after open_after s; its result."""
-    t0 = (_now(r) // DT_NS + 15) * DT_NS
+    # start after every target an earlier fold streamed: a fold that failed early leaves
+    # targets stamped later, which would otherwise land inside this fold's window
+    t0 = (max(_now(r), getattr(r, "streamed_until", 0)) // DT_NS + 15) * DT_NS
     spec = _announce(r, t0, duration)
     time.sleep(0.2)  # the announcement before the commands (different topics)
     _command(r, t0, 0.0)
@@ -154,6 +156,7 @@ def _fold(r, duration: float, open_after: float, jump_at: int | None = None) -> 
         pos[jump_at] = [50.0, 0.0, 0.1]
     before = len(r.results)
     _targets(r, stamps, pos)
+    r.streamed_until = stamps[-1]
     _command(r, t0 + round(open_after / 0.04) * DT_NS, 0.08)
     return _result(r, before)
 

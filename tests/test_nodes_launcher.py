@@ -131,8 +131,8 @@ def test_launcher_escalates_and_leaves_nothing(tmp_path):
     child = int(launcher.wait_for(a, r"child (\d+)", 20).group(1))
     launcher.wait_for(b, "up", 20)
     tic = time.monotonic()
-    codes = launcher.stop_all(timeout=1.0)
-    assert time.monotonic() - tic < 10
+    codes = launcher.stop_all(timeout=3.0)  # a loaded 2-core machine can take over 1 s to run a SIGINT handler
+    assert time.monotonic() - tic < 15
     assert codes["polite"] == 0 and "bye" in b.lines
     assert codes["stubborn"] != 0
     import os

@@ -128,8 +128,11 @@ class ClothSimulator:
             raise ValueError(f"gripper {gripper} is already closed")
         g = grasp(self.x, self.triangles, pose)
         held = self.grasped_vertex_ids()
-        if np.intersect1d(held, g.vertex_ids).size:
-            raise ValueError(f"gripper {gripper} would grasp vertices another gripper holds")
+        shared = np.isin(g.vertex_ids, held)
+        if shared.all():
+            raise ValueError(f"gripper {gripper} would hold only cloth another gripper holds")
+        if shared.any():  # boxes whose triangles touch: cloth already held stays with its gripper
+            g = Grasp(g.vertex_ids[~shared], g.local[~shared])
         self.grasps[gripper] = g
         return g.vertex_ids
 
