@@ -159,7 +159,7 @@ def test_cloth_state_source_reports_visible_keypoints(env):
             for k, name in enumerate(("left_sleeve", "right_sleeve", "left_side", "right_side")):
                 spec = fold_spec(name, visible_keypoints(g, v, sides), folds_done=[s.name for s in sides])
                 feed.fold(spec, (10 * k + 10) * S)
-                launcher.wait_for(node, f"fold {name} done", 20)
+                launcher.wait_for(node, f"fold {name} done", 60)  # generous: the suite loads both cores
                 sides.append(spec)
                 v = fold_target(v, spec, T)
             stamp = 100 * S
