@@ -7,6 +7,15 @@ from typing import Iterator
 from clothfold_ros.cli.launcher import Launcher
 
 
+#: Parameter overrides of a quick kinematic pipeline: the planner's own (h, tilt), a 2 s fold
+#: played 4x faster than real time, model keypoints twice a second.
+FAST_KINEMATIC = {
+    "fold_planner_node": {"selection": "parameter", "duration": 2.0},
+    "kinematic_robot_node": {"real_time_factor": 4.0},
+    "keypoint_node": {"model_period": 0.5},
+}
+
+
 @contextmanager
 def running_pipeline(monkeypatch, domain: int, backend: str, overrides: dict[str, dict],
                      client_name: str, check_alive: bool = True) -> Iterator[tuple]:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline_helpers import running_pipeline
+from pipeline_helpers import FAST_KINEMATIC, running_pipeline
 from rosbags_decode import rosbags_messages
 
 from clothfold_ros.bag import BagReader
@@ -97,12 +97,7 @@ def test_gripper_marker_is_the_grasp_box():
 
 @pytest.fixture
 def pipeline(monkeypatch):
-    overrides = {
-        "fold_planner_node": {"selection": "parameter", "duration": 2.0},
-        "kinematic_robot_node": {"real_time_factor": 4.0},
-        "keypoint_node": {"model_period": 0.5},
-    }
-    with running_pipeline(monkeypatch, DOMAIN, "kinematic", overrides, "test_bag_tf") as pair:
+    with running_pipeline(monkeypatch, DOMAIN, "kinematic", FAST_KINEMATIC, "test_bag_tf") as pair:
         yield pair
 
 

@@ -13,7 +13,7 @@ import pytest
 from clothfold_msgs.msg import Keypoints
 from geometry_msgs.msg import Point
 
-from pipeline_helpers import running_pipeline
+from pipeline_helpers import FAST_KINEMATIC, running_pipeline
 
 from clothfold_ros.nodes.conversions import fold_spec_from_msg
 
@@ -22,12 +22,7 @@ DOMAIN = 151
 
 @pytest.fixture
 def pipeline(monkeypatch):
-    overrides = {
-        "fold_planner_node": {"selection": "parameter", "duration": 2.0},
-        "kinematic_robot_node": {"real_time_factor": 4.0},
-        "keypoint_node": {"model_period": 0.5},
-    }
-    with running_pipeline(monkeypatch, DOMAIN, "kinematic", overrides, "test_pipeline_kinematic") as pair:
+    with running_pipeline(monkeypatch, DOMAIN, "kinematic", FAST_KINEMATIC, "test_pipeline_kinematic") as pair:
         yield pair  # a node that died fails the test
 
 
