@@ -81,11 +81,7 @@ class HessianPattern:
         self._rebuild(np.unique(np.concatenate(keys)))
 
     def _rebuild(self, keys: np.ndarray) -> None:
-        self.keys = keys
-        self.nnz = len(keys)
-        self.rows = (keys // self.ndof).astype(np.int32)
-        self.indices = (keys % self.ndof).astype(np.int32)
-        self.indptr = np.searchsorted(self.rows, np.arange(self.ndof + 1)).astype(np.int32)
+        self._set_keys(keys)
         self.diag_slots = np.searchsorted(keys, np.arange(self.ndof, dtype=np.int64) * (self.ndof + 1))
         self.block_slots = []
         for dofs in self._blocks:
@@ -95,15 +91,19 @@ class HessianPattern:
             self.block_slots.append(slots)
         self.version = 0
 
+    def _set_keys(self, keys: np.ndarray) -> None:
+        """The sorted keys r * ndof + c and the CSR arrays (rows, indices, indptr) they define."""
+        self.keys = keys
+        self.nnz = len(keys)
+        self.rows = (keys // self.ndof).astype(np.int32)
+        self.indices = (keys % self.ndof).astype(np.int32)
+        self.indptr = np.searchsorted(self.rows, np.arange(self.ndof + 1)).astype(np.int32)
+
     def _insert(self, new_keys: np.ndarray) -> None:
         """Add sorted keys absent from the pattern; existing slots shift past the inserted ones."""
         shift = np.searchsorted(new_keys, self.keys)  # inserted keys below each old key
         old_to_new = np.arange(self.nnz) + shift
-        self.keys = np.insert(self.keys, np.searchsorted(self.keys, new_keys), new_keys)
-        self.nnz = len(self.keys)
-        self.rows = (self.keys // self.ndof).astype(np.int32)
-        self.indices = (self.keys % self.ndof).astype(np.int32)
-        self.indptr = np.searchsorted(self.rows, np.arange(self.ndof + 1)).astype(np.int32)
+        self._set_keys(np.insert(self.keys, np.searchsorted(self.keys, new_keys), new_keys))
         self.diag_slots = old_to_new[self.diag_slots]
         for i, slots in enumerate(self.block_slots):
             self.block_slots[i] = np.where(slots >= 0, old_to_new[slots], -1)
