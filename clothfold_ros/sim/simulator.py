@@ -192,25 +192,27 @@ class ClothSimulator:
             anchor[held, 2] = np.maximum(anchor[held, 2], np.minimum(floor, x_prev[held, 2]))
         return weight, anchor
 
-    def _warm_start(self, x_prev: np.ndarray, weight: np.ndarray, anchor: np.ndarray, phases) -> np.ndarray:
-        """Newton's first iterate: held cloth at its grip points, cut back by CCD to an
-        intersection-free fraction of that move; free cloth where it is. (Moving free cloth
+    def _warm_start(self, x_prev: np.ndarray, weight: np.ndarray, anchor: np.ndarray, phases):
+        """Newton's first iterate and its collisions (None: not built yet): held cloth at its
+        grip points, cut back by CCD to an intersection-free fraction of that move; free
+        cloth where it is. (Moving free cloth
         on at its velocity was tried: it pushes cloth falling onto the table deep into the
         barrier, where the lagged friction of the next step then glues it.)"""
         guess = x_prev.copy()
         held = weight > 0
         guess[held] = anchor[held]
         if np.array_equal(guess, x_prev):
-            return x_prev.copy()
+            return x_prev.copy(), None
         tic = time.perf_counter()
         alpha = min(1.0, self.contact.max_step(x_prev, guess))
         phases["ccd"] += time.perf_counter() - tic
         if alpha <= 0.0:
-            return x_prev.copy()
+            return x_prev.copy(), None
         x = x_prev + alpha * (guess - x_prev)
-        if not self.contact.separated(self.contact.build(x), x):
-            return x_prev.copy()
-        return x
+        col = self.contact.build(x)
+        if not self.contact.separated(col, x):
+            return x_prev.copy(), None
+        return x, col
 
     def step(self, gripper_poses: dict[int, Pose] | None = None) -> StepStats:
         """Advance by dt; `gripper_poses` gives each closed gripper's pose at the step's end."""
@@ -237,8 +239,8 @@ class ClothSimulator:
         phases["friction_lag"] += time.perf_counter() - tic
 
         analyses0 = self._solver.analyses
-        x = self._warm_start(x_prev, weight, anchor, phases)
-        x, iterations, halvings, residual, col = self._newton(x, x_prev, x_hat, phases, when, pull)
+        x, col = self._warm_start(x_prev, weight, anchor, phases)
+        x, iterations, halvings, residual, col = self._newton(x, x_prev, x_hat, phases, when, pull, col)
         if self.config.check_intersections:
             tic = time.perf_counter()
             if self.contact.intersects(x):
@@ -303,7 +305,7 @@ class ClothSimulator:
             p = -grad / d
         return p.reshape(-1, 3)
 
-    def _newton(self, x, x_prev, x_hat, phases, when, pull=None):
+    def _newton(self, x, x_prev, x_hat, phases, when, pull=None, col=None):
         """Projected Newton on all vertices; returns (x, iterations, halvings, residual, collisions).
 
         pull = (per-vertex spring weight (N,), grip points (N, 3)) adds the grasp energy
@@ -315,7 +317,7 @@ class ClothSimulator:
         residuals: list[float] = []
         halvings = 0
         prev_min = np.inf
-        col = None  # collisions at x, carried over from the line search
+        # col: collisions at x (from the warm start, then carried over from the line search)
         diag = self._mass_dof if pull is None else self._mass_dof + np.repeat(pull[0], 3)
         for it in range(1, cfg.max_newton_iterations + 1):
             if col is None:
