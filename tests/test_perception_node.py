@@ -51,7 +51,17 @@ class Feeder:
     def cloud(self, pts: np.ndarray, stamp_ns: int, frame: str = "table") -> None:
         self.cloud_pub.publish(rc.mesh_points(pts, stamp_ns, frame))
 
+    def matched(self, timeout: float = 30.0) -> None:
+        """Wait until keypoint_node subscribes to the fold announcements: /fold/result is volatile, so a
+        result published before discovery completes is lost (the suite loads both cores)."""
+        deadline = time.monotonic() + timeout
+        while min(self.active_pub.get_subscription_count(), self.result_pub.get_subscription_count()) < 1:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"keypoint_node did not subscribe to the fold topics within {timeout:g} s")
+            time.sleep(0.05)
+
     def fold(self, spec, t0_ns: int, success: bool = True) -> None:
+        self.matched()
         self.active_pub.publish(rc.fold_spec_to_msg(rc.PlannedFold(spec, 0.5, 30.0, 4.0, 0.2, 0, t0_ns)))
         time.sleep(0.5)
         self.result_pub.publish(FoldResult(header=rc.header(t0_ns + 5 * S), fold_name=spec.name, success=success,

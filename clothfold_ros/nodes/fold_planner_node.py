@@ -24,7 +24,7 @@ from pathlib import Path
 from clothfold_msgs.action import ExecuteFold
 from clothfold_msgs.msg import FoldResult, FoldSpec as FoldSpecMsg, Keypoints
 from clothfold_msgs.srv import PlanFold
-from rclpy.action import ActionClient
+from .action_client import LockedActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from std_srvs.srv import Trigger
@@ -72,7 +72,7 @@ class FoldPlannerNode(Node):
         self.create_subscription(Keypoints, common.KEYPOINTS, self.on_keypoints, common.LATCHED,
                                  callback_group=self.group)
         self.spec_pub = self.create_publisher(FoldSpecMsg, common.FOLD_SPEC, common.LATCHED)
-        self.executor_client = ActionClient(self, ExecuteFold, common.EXECUTE_FOLD, callback_group=self.group)
+        self.executor_client = LockedActionClient(self, ExecuteFold, common.EXECUTE_FOLD, callback_group=self.group)
         self.create_service(PlanFold, common.PLAN_FOLD, self.on_plan, callback_group=self.group)
         # Folds made so far (successful /fold/result, in order): the keypoints are those a
         # camera sees on the folded shirt, and fold_spec needs to know which folds they follow.

@@ -13,7 +13,7 @@ import rclpy
 from clothfold_msgs.action import ExecuteFold
 from clothfold_msgs.msg import ClothState, FoldResult, FoldSpec as FoldSpecMsg, Keypoints
 from clothfold_msgs.srv import PlanFold
-from rclpy.action import ActionClient
+from .action_client import LockedActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -40,7 +40,7 @@ class PipelineClient:
         self.clock_messages = 0
         self.node.create_subscription(Clock, common.CLOCK, self._on_clock, 10)
         self.plan_client = self.node.create_client(PlanFold, common.PLAN_FOLD)
-        self.execute_client = ActionClient(self.node, ExecuteFold, common.EXECUTE_FOLD)
+        self.execute_client = LockedActionClient(self.node, ExecuteFold, common.EXECUTE_FOLD)
         self.keypoints_pub = self.node.create_publisher(Keypoints, common.KEYPOINTS, common.LATCHED)
         self.state_pub = self.node.create_publisher(ClothState, common.CLOTH_STATE, common.LATCHED)
         self.executor = SingleThreadedExecutor(context=self.context)
