@@ -4,6 +4,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..sim.config import SimConfig
+
 TABLES_ROOT = Path("config/tables")  # a package resource: below the checkout or share/clothfold_ros
 
 
@@ -25,9 +27,9 @@ def output_tables() -> Path:
 
 def add_stepping_options(p: argparse.ArgumentParser) -> None:
     """--dt, --settle, --newton-tol: how one fold is stepped (simulate, sweep)."""
-    p.add_argument("--dt", type=float, default=0.04, help="time step (s)")
+    p.add_argument("--dt", type=float, default=SimConfig.dt, help="time step (s)")
     p.add_argument("--settle", type=float, default=0.2, help="settle time after release (s)")
-    p.add_argument("--newton-tol", type=float, default=1e-3, help="Newton stop: RMS(|dx|)/dt (m/s)")
+    p.add_argument("--newton-tol", type=float, default=SimConfig.newton_tol, help="Newton stop: RMS(|dx|)/dt (m/s)")
 
 
 def add_tables_option(p: argparse.ArgumentParser, help: str = "lookup tables root") -> None:

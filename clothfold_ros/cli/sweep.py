@@ -5,6 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..sim.config import SimConfig
 from ._options import TABLES_ROOT, add_stepping_options, output_tables, shipped_tables
 
 
@@ -21,7 +22,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-area", type=float, default=5e-4,
                    help="max triangle area (m^2); default 5e-4 (1.2K triangles, the shipped tables), 5e-5 = full")
     add_stepping_options(p)
-    p.add_argument("--max-newton", type=int, default=80, help="Newton iterations per step before failing")
+    p.add_argument("--max-newton", type=int, default=SimConfig.max_newton_iterations,
+                   help="Newton iterations per step before failing (default: the simulator's)")
     p.add_argument("--workers", type=int, default=None, help="local processes (default: number of cores)")
     p.add_argument("--ray", default=None, metavar="ADDRESS",
                    help="run on Ray: a cluster address, 'auto', or 'local' (a private single-node Ray here)")
