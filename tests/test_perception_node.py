@@ -201,3 +201,43 @@ def test_cloud_from_msg_round_trip_and_errors():
     m.data = m.data[:100]
     with pytest.raises(ValueError, match="bytes"):
         cloud_from_msg(m)
+
+
+def test_a_replayed_mid_fold_state_never_replaces_newer_keypoints(monkeypatch):
+    """The fold's final cloth state may be handled between its result and the replay of the
+    state skipped mid-fold; the replay must then be dropped, or the latest /keypoints would be
+    older than the fold (and a client waiting for keypoints after the fold waits forever)."""
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from clothfold_ros.nodes.keypoint_node import KeypointNode
+
+    g = make_shirt(1, max_area=2e-3)
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-p", "source:=cloth_state", "-p", "max_area:=0.002"], context=ctx, domain_id=174)
+    try:
+        monkeypatch.setattr(rclpy.node.Node, "__init__", _with_context(rclpy.node.Node.__init__, ctx))
+        node = KeypointNode()
+        published, later = [], []
+        monkeypatch.setattr(node.pub, "publish", published.append)
+        monkeypatch.setattr(node, "call_later", later.append)
+        spec = fold_spec("left_sleeve", g.keypoints())
+        node.on_active(rc.fold_spec_to_msg(rc.PlannedFold(spec, 0.5, 30.0, 4.0, 0.2, 0, 10 * S)))
+        state = lambda t: rc.cloth_state_to_msg(g.vertices, g.triangles, g.keypoint_ids, T, t)  # noqa: E731
+        node.on_state(state(12 * S))  # mid-fold: skipped
+        assert published == []
+        node.on_result(FoldResult(header=rc.header(14 * S), fold_name=spec.name, success=True, loss=0.005))
+        node.on_state(state(14 * S))  # the final state, handled before the replay
+        for callback, arg in later:
+            callback(arg)
+        assert [rc.time_to_ns(m.header.stamp) for m in published] == [14 * S]
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+def _with_context(init, ctx):
+    def wrapped(self, *args, **kwargs):
+        kwargs.setdefault("context", ctx)
+        return init(self, *args, **kwargs)
+    return wrapped

@@ -36,6 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="with --sequence: largest loss (m) against the composed target a stage may end with (default 0.15)")
     p.add_argument("--max-area", type=float, default=None,
                    help="sim mesh max triangle area (m^2; default 5e-4, about 1.2K triangles; with --sequence 2e-4, about 3K)")
+    p.add_argument("--keypoints", choices=("points", "cloth_state"), default=None,
+                   help="keypoint_node source: points: fitted to the sim's camera-like cloud (perception); "
+                   "cloth_state: what a camera would see of the simulated mesh, no fitting (default: config file)")
     p.add_argument("--selection", choices=("table", "parameter"), default=None,
                    help="(height ratio, tilt) from the lookup table or the parameters (default: config file)")
     p.add_argument("--bags", type=Path, default=Path("bags"),
@@ -82,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
     overrides: dict[str, dict] = {"cloth_sim_node": {"max_area": args.max_area}}
     if args.selection:
         overrides["fold_planner_node"] = {"selection": args.selection}
+    if args.keypoints:
+        overrides["keypoint_node"] = {"source": args.keypoints, "max_area": args.max_area}
     if args.sequence:
         # Tables exist for the sleeve stages only (docs/lookup.md): the side and middle folds
         # take the nearest table's choice, or the planner's parameters (h 0.45, tilt 0) if no
@@ -136,7 +141,12 @@ def run(args: argparse.Namespace) -> int:
                     break
                 if stage + 1 < len(folds) and args.backend == "sim":
                     # the next stage is planned from the keypoints of the cloth as it is now
-                    kp = client.wait_keypoints(60, newer_than_ns=time_to_ns(res.header.stamp) - 1)
+                    try:
+                        kp = client.wait_keypoints(60, newer_than_ns=time_to_ns(res.header.stamp) - 1)
+                    except TimeoutError:
+                        raise RuntimeError(f"keypoint_node published no keypoints of the cloth after {fold} within "
+                                           "60 s (its log says why, e.g. a rejected fit; --keypoints cloth_state "
+                                           "skips the fit)") from None
         code = 0 if losses and all(ok for _, ok, _, _ in losses) and len(losses) == len(folds) else 1
     except (RuntimeError, TimeoutError) as err:
         print(f"[demo] error: {err}", file=sys.stderr, flush=True)

@@ -101,6 +101,7 @@ class KeypointNode(Node):
         self.failed = None  # a fold that failed: the cloth may or may not be folded by it
         self.prior = None  # the last good estimate (source = points)
         self.skipped = None  # (callback, msg) of the last cloth message skipped while a fold ran
+        self.published_ns = -1  # stamp of the newest keypoints published: an older cloth message is stale
         self._garment = None
         source = params.value(self, "source")
         if source in ("points", "cloth_state"):
@@ -149,7 +150,7 @@ class KeypointNode(Node):
         active, self.active = self.active, None
         skipped, self.skipped = self.skipped, None
         if skipped is not None:  # the cloth message that came before this result (other topic, any order)
-            self.call_later(skipped)
+            self.call_later((self.replay, skipped))
         if active is None or active.spec.name != msg.fold_name:
             self.get_logger().warn(f"result of fold {msg.fold_name!r} without its /fold/active spec: "
                                    "the fold history is not changed")
@@ -189,6 +190,14 @@ class KeypointNode(Node):
             self.active, self.failed = None, a.spec
             return False
         return True
+
+    def replay(self, call) -> None:
+        """Handle a cloth message skipped during the fold that just ended, unless a newer one was
+        handled meanwhile (the fold's final state can arrive before its result or between the result
+        and this replay): replaying it then would replace newer keypoints with older ones."""
+        callback, msg = call
+        if rc.time_to_ns(msg.header.stamp) >= self.published_ns:
+            callback(msg)
 
     def fold_names(self, extra=None) -> list[str]:
         return [s.name for s in self.folds] + ([extra.name] if extra is not None else [])
@@ -242,6 +251,7 @@ class KeypointNode(Node):
             self.folds = (self.folds + [self.failed]) if len(names) > len(self.folds) else []
         self.failed = None
         self.prior = est
+        self.published_ns = stamp
         self.pub.publish(rc.keypoints_to_msg(est.keypoints, stamp))
         self.outline_pub.publish(self.outline_marker(est.segments, stamp))
         self.count += 1
@@ -296,6 +306,7 @@ class KeypointNode(Node):
             self.errors += 1
             self.get_logger().error(f"bad cloth state skipped ({self.errors} so far): {err}")
             return
+        self.published_ns = state.stamp_ns
         self.pub.publish(rc.keypoints_to_msg(kp, state.stamp_ns, ids))
         self.count += 1
 
