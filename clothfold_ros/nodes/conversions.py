@@ -21,6 +21,7 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker
 
 from ..folding import FoldSpec
+from ..plan import FoldPlan
 from ..pose import Pose
 
 TABLE_FRAME = "table"
@@ -137,16 +138,11 @@ def keypoints_from_msg(m: Keypoints) -> tuple[dict[str, np.ndarray], dict[str, i
 
 
 # -- fold specification ----------------------------------------------------------------------
-@dataclass(frozen=True)
-class PlannedFold:
-    """A FoldSpec message in core types: the geometric spec plus trajectory parameters."""
+@dataclass(frozen=True, eq=False)
+class PlannedFold(FoldPlan):
+    """A FoldSpec message in core types: the core FoldPlan (checked when built) and its stamp
+    (for /fold/active: when the motion starts)."""
 
-    spec: FoldSpec
-    height_ratio: float
-    tilt_deg: float
-    duration: float  # s
-    settle_time: float  # s
-    stage: int = 0
     stamp_ns: int = 0
     extra: dict = field(default_factory=dict)
 
@@ -163,7 +159,8 @@ def fold_spec_to_msg(fold: PlannedFold, frame_id: str = TABLE_FRAME) -> FoldSpec
 
 
 def fold_spec_from_msg(m: FoldSpecMsg) -> PlannedFold:
-    """PlannedFold from clothfold_msgs/FoldSpec; ValueError on NaN or inconsistent arrays."""
+    """PlannedFold from clothfold_msgs/FoldSpec; ValueError on NaN, inconsistent arrays or a plan
+    that is not valid (FoldPlan's checks)."""
     if m.header.frame_id not in ("", TABLE_FRAME):
         raise ValueError(f"fold spec frame is {m.header.frame_id!r}; expected {TABLE_FRAME!r}")
     if not m.fold_name:

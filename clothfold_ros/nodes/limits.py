@@ -84,10 +84,10 @@ SETTLE_RANGE = (0.0, 10.0)  # s
 LAYER_OFFSET_RANGE = (1.0, 8.0)  # x thickness
 
 
-def check_plan(plan) -> str | None:
-    """Reason a PlannedFold (nodes/conversions) is outside what is executed, or None: a known fold
-    name, (h, tilt) inside the search space, duration and settle time in their ranges, one or two
-    grippers with matching pose / tilt sign arrays, tilt signs +-1, a unit horizontal fold line."""
+def check_plan_limits(plan) -> str | None:
+    """Reason a (valid, core) FoldPlan is outside what this pipeline executes, or None: a known
+    fold name, (h, tilt) inside the lookup's search space, duration, settle time and layer offset
+    in their ranges, one or two grippers, tilt signs +-1."""
     from ..folding import FOLD_NAMES
 
     s = plan.spec
@@ -100,12 +100,8 @@ def check_plan(plan) -> str | None:
                                     ("layer_offset_factor", s.layer_offset_factor, LAYER_OFFSET_RANGE, "")):
         if not lo <= v <= hi:
             return f"{what} = {v:g}{unit} is outside [{lo:g}, {hi:g}]{unit}"
-    n = len(s.start_poses)
-    if not 1 <= n <= 2 or len(s.end_poses) != n or len(s.tilt_signs) != n:
-        return (f"a fold needs 1 or 2 grippers with as many end poses and tilt signs; got {n} start poses, "
-                f"{len(s.end_poses)} end poses, {len(s.tilt_signs)} tilt signs")
+    if not 1 <= s.n_grippers <= 2:
+        return f"a fold needs 1 or 2 grippers; got {s.n_grippers}"
     if any(abs(abs(x) - 1.0) > 1e-9 for x in s.tilt_signs):
         return f"tilt_signs must be +1 or -1, got {list(s.tilt_signs)}"
-    if plan.stage < 0:
-        return f"stage must be >= 0, got {plan.stage}"
     return None

@@ -2,7 +2,7 @@
 
 For one goal (a FoldSpec with height ratio, tilt, duration) it
 1. checks it (finite values; a known fold name; h, tilt inside the search space of the
-   lookup, duration and settle time in range: limits.check_plan; gripper count, workspace
+   lookup, duration and settle time in range: limits.check_plan_limits; gripper count, workspace
    box, gripper speed limit) and that no other fold runs; a refused goal is rejected with
    the reason logged;
 2. picks the start time t0 = now + start_delay (node clock: /clock with use_sim_time, or
@@ -23,6 +23,7 @@ Everything in the table frame (m, z up).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import threading
@@ -41,7 +42,7 @@ from . import conversions as rc
 from ..pose import Pose
 from ..trajectory import FoldTrajectory
 from . import common, params
-from .limits import check_plan, check_trajectory, check_workspace_params
+from .limits import check_plan_limits, check_trajectory, check_workspace_params
 from .params import Param
 from .waiting import wait_until
 
@@ -75,6 +76,7 @@ class TrajectoryNode(Node):
         super().__init__("trajectory_node")
         params.declare(self, PARAMS, _workspace_check)
         n = params.value(self, "n_grippers")
+        self._prepared = None  # (goal spec message, plan, trajectory) of the goal checked last
         self.group = ReentrantCallbackGroup()
         self.pose_pubs = [self.create_publisher(PoseStamped, common.gripper_topic(i, "target_pose"), common.TARGETS)
                           for i in range(n)]
@@ -97,17 +99,22 @@ class TrajectoryNode(Node):
 
     # -- checks ---------------------------------------------------------------------------
     def prepare(self, spec_msg: FoldSpecMsg) -> tuple[rc.PlannedFold, FoldTrajectory]:
-        """PlannedFold and trajectory of a goal; ValueError with the reason it is refused."""
-        plan = rc.fold_spec_from_msg(spec_msg)
-        reason = check_plan(plan)
+        """PlannedFold and trajectory of a goal; ValueError with the reason it is refused.
+        The goal accepted last is prepared once: its execution reuses what on_goal checked."""
+        cached = self._prepared
+        if cached is not None and cached[0] is spec_msg:
+            return cached[1], cached[2]
+        plan = rc.fold_spec_from_msg(spec_msg)  # the core plan checks itself when built
+        reason = check_plan_limits(plan)
         if reason:
             raise ValueError(reason)
-        traj = FoldTrajectory(plan.spec, plan.height_ratio, plan.tilt_deg, plan.duration)
+        traj = plan.trajectory
         reason = check_trajectory(traj, params.value(self, "rate"), params.value(self, "workspace_min"),
                                   params.value(self, "workspace_max"), params.value(self, "max_speed"),
                                   params.value(self, "n_grippers"))
         if reason:
             raise ValueError(reason)
+        self._prepared = (spec_msg, plan, traj)
         return plan, traj
 
     def on_goal(self, goal: ExecuteFold.Goal) -> GoalResponse:
@@ -217,8 +224,7 @@ class TrajectoryNode(Node):
         poses = [[Pose(pos[k, g], quat[k, g]) for g in grippers] for k in range(len(times))]
         with self.results_cv:
             self.results.clear()
-        active = rc.fold_spec_to_msg(rc.PlannedFold(spec, plan.height_ratio, plan.tilt_deg, plan.duration,
-                                                    plan.settle_time, plan.stage, t0))
+        active = rc.fold_spec_to_msg(dataclasses.replace(plan, stamp_ns=t0))
         self.active_pub.publish(active)
         for g in grippers:
             self.path_pubs[g].publish(rc.path_msg(stamps, [p[g] for p in poses]))

@@ -9,7 +9,7 @@ from ..folding import FoldSpec
 from ..garment import Garment
 from ..loss import fold_target
 from ..materials import Material
-from ..trajectory import FoldTrajectory
+from ..plan import FoldPlan
 from .config import SimConfig
 from .episode import FoldEpisode, FoldOutcome
 from .simulator import ClothSimulator, SimulationFailure, StepStats
@@ -37,26 +37,38 @@ def run_fold(
     config: SimConfig | None = None,
     progress: Callable[[int, int, StepStats], None] | None = None,
 ) -> FoldOutcome:
-    """Simulate one fold and return its outcome (never raises for a failed simulation).
+    """`run_plan` for a plan given as its parts (dt is used when no config is given)."""
+    return run_plan(garment, FoldPlan(spec, height_ratio, tilt_deg, duration, settle_time), material, friction,
+                    vertices, target_base, config or SimConfig(dt=dt), progress)
+
+
+def run_plan(
+    garment: Garment,
+    plan: FoldPlan,
+    material: Material,
+    friction: float,
+    vertices: np.ndarray | None = None,
+    target_base: np.ndarray | None = None,
+    config: SimConfig | None = None,
+    progress: Callable[[int, int, StepStats], None] | None = None,
+) -> FoldOutcome:
+    """Simulate one planned fold and return its outcome (never raises for a failed simulation).
 
     vertices: start state (default: flat at z = 2 t); target_base: the previous stage's
     target (default: the start state), so targets compose along a sequence.
     """
-    cfg = config or SimConfig(dt=dt)
-    if cfg.dt != dt and config is not None:
-        dt = cfg.dt
+    cfg = config or SimConfig()
     start = flat_start(garment, material) if vertices is None else np.asarray(vertices, dtype=float)
     base = start if target_base is None else np.asarray(target_base, dtype=float)
-    target = fold_target(base, spec, material.thickness)
-    trajectory = FoldTrajectory(spec, height_ratio, tilt_deg, duration)
+    target = fold_target(base, plan.spec, material.thickness)
     sim = ClothSimulator(start, garment.triangles, material, friction, cfg, rest=flat_start(garment, material))
-    episode = FoldEpisode(sim, spec, target, settle_time)
-    n_motion = int(round(duration / cfg.dt))
-    n_total = n_motion + int(np.ceil(settle_time / cfg.dt - 1e-9))
+    episode = FoldEpisode(sim, plan.spec, target, plan.settle_time)
+    n_motion = int(round(plan.duration / cfg.dt))
+    n_total = n_motion + int(np.ceil(plan.settle_time / cfg.dt - 1e-9))
     try:
         episode.grasp()
         for k in range(1, n_motion + 1):
-            stats = episode.advance(trajectory.poses_at(k * cfg.dt))
+            stats = episode.advance(plan.trajectory.poses_at(k * cfg.dt))
             if progress:
                 progress(k, n_total, stats)
         episode.release()
