@@ -174,12 +174,15 @@ class Launcher:
         except (ProcessLookupError, PermissionError):
             pass
 
-    def stop(self, proc: Process, timeout: float = 10.0) -> int | None:
-        """SIGINT the process group, then SIGTERM, then SIGKILL; returns the exit code."""
+    def stop(self, proc: Process, timeout: float = 10.0, interrupted: bool = False) -> int | None:
+        """SIGINT the process group (unless `interrupted`: it has had its SIGINT already), then
+        SIGTERM, then SIGKILL; returns the exit code. One SIGINT only: a second one while the
+        process runs its shutdown (a recorder closing its bag) would cut that short."""
         for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
             if proc.popen.poll() is not None:
                 break
-            self._signal(proc, sig)
+            if not (sig == signal.SIGINT and interrupted):
+                self._signal(proc, sig)
             try:
                 proc.popen.wait(wait)
             except subprocess.TimeoutExpired:
@@ -199,7 +202,7 @@ class Launcher:
         deadline = time.monotonic() + timeout
         codes = {}
         for p in reversed(self.procs):
-            codes[p.name] = self.stop(p, max(0.1, deadline - time.monotonic()))
+            codes[p.name] = self.stop(p, max(0.1, deadline - time.monotonic()), interrupted=True)
         return codes
 
     def __enter__(self) -> "Launcher":
