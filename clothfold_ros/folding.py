@@ -26,11 +26,22 @@ from .pose import Pose
 @dataclass(frozen=True)
 class FoldKind:
     """A fold type: its geometry branch in `fold_spec`, the folded layer's offset in the
-    target (x cloth thickness) and its code in the scenario features (lookup/scenario.py)."""
+    target (x cloth thickness), its code in the scenario features (lookup/scenario.py) and
+    what it does to the keypoints a camera sees (perception/visible.py):
+
+    - keeps_keypoints: the folded part lands on top of all the rest, so every keypoint stays
+      the material point (the middle fold);
+    - outline_corners: keypoint -> the outline path it follows toward the shirt's middle; such a
+      keypoint moved by the fold becomes the point where the fold line cuts that path (the
+      folded outline's corner; "{side}" is the fold's side). Other moved keypoints are
+      projected onto the fold line, sleeve keypoints stay material points.
+    """
 
     name: str
     layer_offset_factor: float
     feature_code: float
+    keeps_keypoints: bool = False
+    outline_corners: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -45,7 +56,10 @@ class Fold:
 
 #: The fold registry: the one place a fold (type) is named. In sequence order.
 FOLD_KINDS: dict[str, FoldKind] = {k.name: k for k in (
-    FoldKind("sleeve", 2.0, 0.0), FoldKind("side", 3.0, 1.0), FoldKind("middle", 4.0, 2.0))}
+    FoldKind("sleeve", 2.0, 0.0, outline_corners=(("shoulder_{side}", ("neck_{side}", "neck_middle")),
+                                                  ("neck_{side}", ("neck_middle",)))),
+    FoldKind("side", 3.0, 1.0),
+    FoldKind("middle", 4.0, 2.0, keeps_keypoints=True))}
 FOLDS: dict[str, Fold] = {f.name: f for f in (
     Fold("left_sleeve", "sleeve", 0), Fold("right_sleeve", "sleeve", 1), Fold("left_side", "side", 2),
     Fold("right_side", "side", 2), Fold("middle", "middle", 3))}

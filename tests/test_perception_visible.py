@@ -184,3 +184,27 @@ def test_a_crease_inside_the_fold_line_moves_the_crease_keypoints_only():
         else:  # bottom, armpit, shoulder, neck of the left side: on the crease, at their height
             np.testing.assert_allclose(b[k], [edge, outline[k, 1]], atol=1e-12)
     assert {"bottom_left", "armpit_left"} <= {n for k, n in enumerate(KEYPOINT_NAMES) if b[k, 0] == edge}
+
+
+def test_the_keypoint_rules_are_the_fold_kinds_registry(monkeypatch):
+    """visible.py holds no per-type branches: a fold type's rules are its FOLD_KINDS entry."""
+    import dataclasses
+
+    from clothfold_ros import folding
+
+    g = make_shirt(1, max_area=5e-3)
+    flat = np.array([g.keypoints()[n][:2] for n in KEYPOINT_NAMES])
+    spec = fold_spec("left_sleeve", g.keypoints())
+    moved = keypoint_locations(flat, [spec])
+    i = KEYPOINT_NAMES.index("shoulder_left")
+    assert not np.allclose(moved[i], flat[i])  # the sleeve's outline corner rule moved the shoulder
+    kinds = dict(folding.FOLD_KINDS)
+    kinds["sleeve"] = dataclasses.replace(kinds["sleeve"], outline_corners=())
+    monkeypatch.setattr(folding, "FOLD_KINDS", kinds)
+    import clothfold_ros.perception.visible as visible
+
+    monkeypatch.setattr(visible, "FOLD_KINDS", kinds)
+    projected = keypoint_locations(flat, [spec])
+    assert not np.allclose(projected[i], moved[i])  # without it: projected onto the fold line
+    kinds["sleeve"] = dataclasses.replace(kinds["sleeve"], keeps_keypoints=True)
+    np.testing.assert_allclose(keypoint_locations(flat, [spec]), flat)

@@ -158,7 +158,7 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
     info["spec_note"] = note
     info["features"] = features(fold_name=sc.folds[0], keypoints=kp, material_name=sc.material,
                                 friction=sc.friction, duration=sc.duration,
-                                grip=None if sc.folds[0] == "middle" else grip_distance(spec))
+                                grip=grip_distance(spec))
     return path, info
 
 

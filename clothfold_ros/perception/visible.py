@@ -4,7 +4,8 @@ Frame: table frame, metres, z up; all fold geometry is horizontal (x, y). Define
 here and used by the cloth-state keypoints, the point-cloud estimator and the benchmark.
 
 A flat shirt's keypoints are its material points (`Garment.keypoints`). Each fold done
-(in order, as planned: `FoldSpec`s or `FoldLine`s) changes the keypoints it moves:
+(in order, as planned: `FoldSpec`s or `FoldLine`s) changes the keypoints it moves, by the
+rules of its type in `folding.FOLD_KINDS` (`keeps_keypoints`, `outline_corners`):
 
 | fold | keypoint moved by it | visible keypoint |
 |---|---|---|
@@ -30,7 +31,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..folding import FoldSpec, fold_type
+from ..folding import FOLD_KINDS, FoldSpec, fold_type
 from ..garment import KEYPOINT_NAMES, Garment
 
 SIDE_TOL = 1e-6  # m: a point closer than this to a fold line is on it (not moved)
@@ -133,19 +134,21 @@ def keypoint_locations(outline: np.ndarray, folds: Sequence["FoldLine | FoldSpec
     lines = fold_lines(folds)
     loc = outline.copy()
     for k, f in enumerate(lines):
-        if f.kind == "middle":
+        kind = FOLD_KINDS[f.kind]
+        if kind.keeps_keypoints:
             continue
         prev = lines[:k]
         cur = apply_folds(loc, prev)
         edge = f.crease_line
         s = edge.side(cur)
         side = f.name.split("_")[0]
+        corners = {name.format(side=side): [n.format(side=side) for n in path] for name, path in kind.outline_corners}
         for i, name in enumerate(KEYPOINT_NAMES):
             if s[i] <= SIDE_TOL or name.startswith("sleeve_"):
                 continue
             q = None
-            if f.kind == "sleeve" and name in (f"shoulder_{side}", f"neck_{side}"):
-                path = [name, f"neck_{side}", "neck_middle"] if name.startswith("shoulder") else [name, "neck_middle"]
+            if name in corners:
+                path = [name, *corners[name]]
                 q = _first_crossing(apply_folds(outline[[_IDX[n] for n in path]], prev), edge)
             if q is None:
                 q = cur[i] - s[i] * f.normal  # projection onto the crease
