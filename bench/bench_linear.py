@@ -1,0 +1,105 @@
+"""Linear-solver benchmark: one Newton matrix of the default fold, factorized and solved by
+PARDISO with the simulator's settings and with the previous ones (METIS ordering, two
+iterative-refinement steps), in the same run.
+
+    python bench/bench_linear.py [--areas 2e-4 5e-5] [--steps 3] [--repeat 10]
+
+For each mesh it steps the default left-sleeve fold `--steps` steps, takes the last Newton
+matrix (diagonally scaled, as the simulator factorizes it), and prints per setting the factor's
+nonzeros and MFLOP (PARDISO's own report), the median factorization and solve times over
+`--repeat` repetitions, the relative residual, and the ratios current / previous.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from clothfold_ros.folding import fold_spec  # noqa: E402
+from clothfold_ros.garment import make_shirt  # noqa: E402
+from clothfold_ros.loss import fold_target  # noqa: E402
+from clothfold_ros.materials import material  # noqa: E402
+from clothfold_ros.sim.config import SimConfig  # noqa: E402
+from clothfold_ros.sim.episode import FoldEpisode  # noqa: E402
+from clothfold_ros.sim.linear_solver import PardisoSPD  # noqa: E402
+from clothfold_ros.sim.runner import flat_start  # noqa: E402
+from clothfold_ros.sim.simulator import ClothSimulator  # noqa: E402
+from clothfold_ros.trajectory import FoldTrajectory  # noqa: E402
+
+SETTINGS = {"current (minimum degree, no refinement)": dict(ordering="minimum_degree", refinement_steps=0),
+            "previous (METIS, 2 refinement steps)": dict(ordering="metis", refinement_steps=2)}
+
+
+class Capture(ClothSimulator):
+    """Keeps the last scaled Newton matrix it factorized (values, pattern) and its right-hand side."""
+
+    def _direction(self, data, grad, when):
+        pat = self._pattern
+        scale = 1.0 / np.sqrt(data[pat.diag_slots])
+        self.captured = (data * scale[pat.rows] * scale[pat.indices], pat.indptr.copy(), pat.indices.copy(),
+                         -scale * grad)
+        return super()._direction(data, grad, when)
+
+
+def newton_matrix(area: float, steps: int):
+    cot = material("cotton")
+    g = make_shirt(1, max_area=area)
+    start = flat_start(g, cot)
+    spec = fold_spec("left_sleeve", g.keypoints(start))
+    sim = Capture(start, g.triangles, cot, 0.5, SimConfig(), rest=start)
+    ep = FoldEpisode(sim, spec, fold_target(start, spec, cot.thickness), 0.2)
+    traj = FoldTrajectory(spec, 0.4462, 51.43, 4.0)
+    ep.grasp()
+    for k in range(1, steps + 1):
+        ep.advance(traj.poses_at(k * sim.dt))
+    return len(g.triangles), sim.captured
+
+
+def measure(data, indptr, indices, rhs, repeat: int, **kwargs) -> dict:
+    s = PardisoSPD(**kwargs)
+    s.set_pattern(indptr, indices)
+    s.factor(data)  # analysis + first factorization
+    t_f, t_s = [], []
+    for _ in range(repeat):
+        tic = time.perf_counter()
+        s.factor(data)
+        t_f.append(time.perf_counter() - tic)
+        tic = time.perf_counter()
+        x = s.solve(rhs)
+        t_s.append(time.perf_counter() - tic)
+    n = len(indptr) - 1
+    upper = sp.csr_matrix((data, indices, indptr), shape=(n, n))
+    full = upper + sp.triu(upper, k=1).T
+    res = float(np.linalg.norm(full @ x - rhs) / np.linalg.norm(rhs))
+    return dict(nnz=s.factor_nonzeros, mflop=s.factor_mflop, factor=float(np.median(t_f)),
+                solve=float(np.median(t_s)), residual=res)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--areas", type=float, nargs="+", default=[2e-4, 5e-5])
+    ap.add_argument("--steps", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=10)
+    a = ap.parse_args(argv)
+    for area in a.areas:
+        tris, (data, indptr, indices, rhs) = newton_matrix(area, a.steps)
+        print(f"max area {area:g} m^2: {tris} triangles, {len(indptr) - 1} unknowns, {len(data)} upper nonzeros "
+              f"(Newton matrix of step {a.steps})")
+        rows = {name: measure(data, indptr, indices, rhs, a.repeat, **kw) for name, kw in SETTINGS.items()}
+        for name, r in rows.items():
+            print(f"  {name:42s} factor nnz {r['nnz']:>9d}  {r['mflop']:>5d} MFLOP  factor {r['factor'] * 1e3:7.2f} ms"
+                  f"  solve {r['solve'] * 1e3:6.2f} ms  residual {r['residual']:.1e}")
+        cur, prev = rows.values()
+        print(f"  ratio current / previous: MFLOP {cur['mflop'] / prev['mflop']:.2f}, factor "
+              f"{cur['factor'] / prev['factor']:.2f}, solve {cur['solve'] / prev['solve']:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
