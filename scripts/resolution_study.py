@@ -88,7 +88,9 @@ def report(args: argparse.Namespace) -> int:
     ref = read_rows(area_dir(args.reference) / "runs.jsonl")
     areas = sorted((p.name.removeprefix("area_") for p in STUDY.glob("area_*")), key=float, reverse=True)
     cands = [a for a in areas if a != args.reference]
-    lines = [f"reference: max area {args.reference} m^2, {len(ref)} runs ({sum(r['success'] for r in ref.values())} completed)",
+    ref_wall = np.median([r["wall_time_s"] for r in ref.values()]) if ref else float("nan")
+    lines = [f"reference: max area {args.reference} m^2, {len(ref)} runs ({sum(r['success'] for r in ref.values())} "
+             f"completed), median {ref_wall:.0f} s per run", "",
              "| max area (m^2) | triangles | runs | common | rho (both completed) | bad agree | spread median / max (mm) "
              "| s per run (median) |",
              "|---|---|---|---|---|---|---|---|"]
