@@ -24,11 +24,11 @@ from pathlib import Path
 from clothfold_msgs.action import ExecuteFold
 from clothfold_msgs.msg import FoldResult, FoldSpec as FoldSpecMsg, Keypoints
 from clothfold_msgs.srv import PlanFold
-from .action_client import LockedActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
+from .action_client import LockedActionClient
 from . import conversions as rc
 from ..folding import FOLD_NAMES, FOLD_SEQUENCE, fold_spec
 from ..garment import KEYPOINT_NAMES

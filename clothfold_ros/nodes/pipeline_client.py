@@ -13,12 +13,12 @@ import rclpy
 from clothfold_msgs.action import ExecuteFold
 from clothfold_msgs.msg import ClothState, FoldResult, FoldSpec as FoldSpecMsg, Keypoints
 from clothfold_msgs.srv import PlanFold
-from .action_client import LockedActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
+from .action_client import LockedActionClient
 from . import conversions as rc
 from .waiting import wait_until
 from . import common

@@ -40,7 +40,6 @@ from rclpy.node import Node
 
 from . import conversions as rc
 from ..pose import Pose
-from ..trajectory import FoldTrajectory
 from . import common, params
 from .limits import check_plan_limits, check_trajectory, check_workspace_params
 from .params import Param
@@ -76,7 +75,7 @@ class TrajectoryNode(Node):
         super().__init__("trajectory_node")
         params.declare(self, PARAMS, _workspace_check)
         n = params.value(self, "n_grippers")
-        self._prepared = None  # (goal spec message, plan, trajectory) of the goal checked last
+        self._prepared = None  # (goal spec message, plan) of the goal checked last
         self.group = ReentrantCallbackGroup()
         self.pose_pubs = [self.create_publisher(PoseStamped, common.gripper_topic(i, "target_pose"), common.TARGETS)
                           for i in range(n)]
@@ -98,24 +97,21 @@ class TrajectoryNode(Node):
         self.get_logger().info(f"ready: {common.EXECUTE_FOLD}, {n} gripper(s), {params.value(self, 'rate'):g} Hz")
 
     # -- checks ---------------------------------------------------------------------------
-    def prepare(self, spec_msg: FoldSpecMsg) -> tuple[rc.PlannedFold, FoldTrajectory]:
-        """PlannedFold and trajectory of a goal; ValueError with the reason it is refused.
-        The goal accepted last is prepared once: its execution reuses what on_goal checked."""
+    def prepare(self, spec_msg: FoldSpecMsg) -> rc.PlannedFold:
+        """The goal's PlannedFold (its trajectory: `plan.trajectory`); ValueError with the reason
+        it is refused. The goal checked last is prepared once: its execution reuses what on_goal
+        checked."""
         cached = self._prepared
         if cached is not None and cached[0] is spec_msg:
-            return cached[1], cached[2]
+            return cached[1]
         plan = rc.fold_spec_from_msg(spec_msg)  # the core plan checks itself when built
-        reason = check_plan_limits(plan)
+        reason = check_plan_limits(plan) or check_trajectory(
+            plan.trajectory, params.value(self, "rate"), params.value(self, "workspace_min"),
+            params.value(self, "workspace_max"), params.value(self, "max_speed"), params.value(self, "n_grippers"))
         if reason:
             raise ValueError(reason)
-        traj = plan.trajectory
-        reason = check_trajectory(traj, params.value(self, "rate"), params.value(self, "workspace_min"),
-                                  params.value(self, "workspace_max"), params.value(self, "max_speed"),
-                                  params.value(self, "n_grippers"))
-        if reason:
-            raise ValueError(reason)
-        self._prepared = (spec_msg, plan, traj)
-        return plan, traj
+        self._prepared = (spec_msg, plan)
+        return plan
 
     def on_goal(self, goal: ExecuteFold.Goal) -> GoalResponse:
         name = goal.spec.fold_name or "?"
@@ -206,7 +202,8 @@ class TrajectoryNode(Node):
         return None
 
     def _execute(self, handle) -> ExecuteFold.Result:
-        plan, traj = self.prepare(handle.request.spec)
+        plan = self.prepare(handle.request.spec)
+        traj = plan.trajectory
         spec = plan.spec
         rate = params.value(self, "rate")
         ahead = rc.seconds_to_ns(params.value(self, "lookahead"))

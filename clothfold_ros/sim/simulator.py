@@ -195,9 +195,9 @@ class ClothSimulator:
     def _warm_start(self, x_prev: np.ndarray, weight: np.ndarray, anchor: np.ndarray, phases):
         """Newton's first iterate and its collisions (None: not built yet): held cloth at its
         grip points, cut back by CCD to an intersection-free fraction of that move; free
-        cloth where it is. (Moving free cloth
-        on at its velocity was tried: it pushes cloth falling onto the table deep into the
-        barrier, where the lagged friction of the next step then glues it.)"""
+        cloth where it is. (Moving free cloth on at its velocity was tried: it pushes cloth
+        falling onto the table deep into the barrier, where the lagged friction of the next
+        step then glues it.)"""
         guess = x_prev.copy()
         held = weight > 0
         guess[held] = anchor[held]
