@@ -141,6 +141,39 @@ def test_hessian_pattern_assembles_the_dense_sum_and_grows_for_contacts():
     assert np.allclose(scatter_gradient(n, blocks[0], g), ref)
 
 
+def test_hessian_pattern_prunes_contact_entries_unused_for_keep_solves():
+    v, f = rectangle(0.05, 0.05, 5e-4, 0.0)
+    n = 3 * len(v)
+    pat = HessianPattern(n, [element_dofs(f)], keep_solves=2, prune_fraction=0.25)
+    rng = np.random.default_rng(2)
+    he = rng.normal(size=(len(f), 9, 9))
+    he = he + he.transpose(0, 2, 1)
+    diag = rng.normal(size=n)
+    base = pat.matrix(pat.assemble([he], 1.0, diag)).toarray()
+
+    def contact(a, c):
+        dofs = np.r_[3 * a : 3 * a + 3, 3 * c : 3 * c + 3]
+        hc = np.zeros((n, n))
+        hc[np.ix_(dofs, dofs)] = np.eye(6) + 0.1
+        return hc
+
+    old, kept = contact(0, len(v) - 1), contact(1, len(v) - 2)
+    pat.begin_solve()
+    pat.contact_slots(sp.csc_matrix(old + kept))
+    grown = pat.nnz
+    for _ in range(2):  # `old` separates; `kept` stays in contact
+        assert not pat.begin_solve()
+        pat.contact_slots(sp.csc_matrix(kept))
+    version = pat.version
+    assert pat.begin_solve() and pat.version > version  # `old` unused for more than 2 solves: dropped
+    assert base.size and pat.nnz < grown
+    slots, vals, grew = pat.contact_slots(sp.csc_matrix(kept))
+    assert not grew  # the entries still in use kept their slots
+    full = pat.matrix(pat.assemble([he], 1.0, diag, (slots, vals))).toarray()
+    assert np.allclose(full, base + np.triu(kept))
+    assert np.allclose(pat.matrix(pat.assemble([he], 1.0, diag)).toarray(), base)  # element blocks intact
+
+
 def test_spd_solvers_solve_on_the_persistent_pattern():
     v, f = rectangle(0.05, 0.05, 5e-4, 0.0)
     n = 3 * len(v)

@@ -95,6 +95,7 @@ class PardisoSPD:
     def factor(self, data: np.ndarray) -> None:
         self._data = np.ascontiguousarray(data, dtype=float)
         if not self._analysed:
+            self._iparm[17] = self._iparm[18] = -1  # negative: report factor nonzeros and MFLOP again
             self._call(11, self._data)
             self._analysed = True
             self.analyses += 1

@@ -1,8 +1,11 @@
 """Persistent upper-triangular CSR pattern of the Newton matrix, grown only when needed.
 
-The pattern holds the elastic blocks (triangles, hinges), the diagonal and every
-contact entry seen so far; a contact pair that separates keeps its slot (with zeros), so
-the linear solver re-runs its symbolic analysis only when a new pair appears. A new
+The pattern holds the elastic blocks (triangles, hinges), the diagonal and the contact
+entries seen recently; a contact pair that separates keeps its slot (with zeros), so
+the linear solver re-runs its symbolic analysis only when a new pair appears. Entries
+that stayed unused for `keep_solves` Newton solves are dropped once they make up a
+`prune_fraction` of the contact entries: cloth sliding over cloth meets new pairs all the
+time, and a pattern that only grows fills the factorization with dead couplings. A new
 pair (a, b) also brings in the pairs of the mesh neighbours of a and b (`growth_rings`
 rings around each): contact fronts advance to neighbouring vertices, and each analysis
 costs more than the factorizations it saves. Element
@@ -57,8 +60,11 @@ class HessianPattern:
     """Upper CSR pattern over `ndof` DOFs for element blocks, the diagonal and contacts."""
 
     def __init__(self, ndof: int, blocks: list[np.ndarray], triangles: np.ndarray | None = None,
-                 growth_rings: int = 1) -> None:
+                 growth_rings: int = 1, keep_solves: int = 5, prune_fraction: float = 0.25) -> None:
         self.ndof = ndof
+        self.keep_solves = keep_solves
+        self.prune_fraction = prune_fraction
+        self.solves = 0  # begin_solve() calls so far
         self.pending = np.zeros(0, dtype=np.int64)  # contact entries deferred by contact_slots(grow=False)
         self._rings = None
         if triangles is not None and growth_rings > 0:
@@ -79,6 +85,9 @@ class HessianPattern:
             k, keep = _block_keys(dofs, ndof)
             keys.append(k[keep])
         self._rebuild(np.unique(np.concatenate(keys)))
+        self.base_nnz = self.nnz
+        self.is_base = np.ones(self.nnz, dtype=bool)  # element or diagonal entry (never pruned)
+        self.last_used = np.zeros(self.nnz, dtype=np.int64)  # solve in which a contact entry was last used
 
     def _rebuild(self, keys: np.ndarray) -> None:
         self._set_keys(keys)
@@ -103,11 +112,37 @@ class HessianPattern:
         """Add sorted keys absent from the pattern; existing slots shift past the inserted ones."""
         shift = np.searchsorted(new_keys, self.keys)  # inserted keys below each old key
         old_to_new = np.arange(self.nnz) + shift
-        self._set_keys(np.insert(self.keys, np.searchsorted(self.keys, new_keys), new_keys))
+        where = np.searchsorted(self.keys, new_keys)
+        self.is_base = np.insert(self.is_base, where, False)
+        self.last_used = np.insert(self.last_used, where, self.solves)
+        self._set_keys(np.insert(self.keys, where, new_keys))
+        self._remap(old_to_new)
+
+    def _remap(self, old_to_new: np.ndarray) -> None:
         self.diag_slots = old_to_new[self.diag_slots]
         for i, slots in enumerate(self.block_slots):
             self.block_slots[i] = np.where(slots >= 0, old_to_new[slots], -1)
         self.version += 1
+
+    def _prune(self) -> bool:
+        """Drop contact entries unused for more than keep_solves solves, if they are many."""
+        stale = ~self.is_base & (self.last_used < self.solves - self.keep_solves)
+        n_stale = int(stale.sum())
+        if n_stale == 0 or n_stale < self.prune_fraction * (self.nnz - self.base_nnz):
+            return False
+        keep = ~stale
+        old_to_new = np.cumsum(keep) - 1
+        self.is_base, self.last_used = self.is_base[keep], self.last_used[keep]
+        self._set_keys(self.keys[keep])
+        self._remap(old_to_new)
+        return True
+
+    def begin_solve(self) -> bool:
+        """Start a Newton solve: prune stale contact entries, add the deferred ones; True if
+        the pattern changed (the solver then re-runs its analysis)."""
+        self.solves += 1
+        pruned = self._prune()
+        return self.grow_pending() or pruned
 
     def contact_slots(self, hessian: sp.spmatrix, grow: bool = True) -> tuple[np.ndarray, np.ndarray, bool]:
         """Slots and values of the upper entries of a symmetric sparse contact Hessian.
@@ -127,10 +162,14 @@ class HessianPattern:
         slots_c = np.minimum(slots, self.nnz - 1)
         missing = self.keys[slots_c] != keys
         if not missing.any():
+            self.last_used[slots] = self.solves
             return slots, vals, False
         if grow:
             self._insert(self._with_neighbours(np.unique(keys[missing])))
-            return np.searchsorted(self.keys, keys), vals, True
+            slots = np.searchsorted(self.keys, keys)
+            self.last_used[slots] = self.solves
+            return slots, vals, True
+        self.last_used[slots[~missing]] = self.solves
         miss_keys, miss_vals = keys[missing], vals[missing]
         self.pending = np.union1d(self.pending, miss_keys)
         rows, cols = miss_keys // self.ndof, miss_keys % self.ndof

@@ -104,12 +104,14 @@ class ClothSimulator:
 
         self._tri_dofs = element_dofs(tri)
         self._hinge_dofs = element_dofs(self._hinges)
-        self._pattern = HessianPattern(self.ndof, [self._tri_dofs, self._hinge_dofs], tri, cfg.pattern_growth_rings)
+        self._pattern = HessianPattern(self.ndof, [self._tri_dofs, self._hinge_dofs], tri, cfg.pattern_growth_rings,
+                                       cfg.pattern_keep_solves, cfg.pattern_prune_fraction)
         self._pattern_version = -1  # pattern version the solver has analysed
         self.fallback_directions = 0  # Newton steps that fell back to the scaled gradient
         xi = material.thickness if cfg.xi is None else cfg.xi
         dhat = material.thickness if cfg.dhat is None else cfg.dhat
-        self.contact = ContactModel(rest, tri, xi, dhat, friction, cfg.eps_v, cfg.dt, cfg.broad_phase_reuse)
+        self.contact = ContactModel(rest, tri, xi, dhat, friction, cfg.eps_v, cfg.dt, cfg.broad_phase_reuse,
+                                    cfg.ccd_fraction)
         self.grasps: dict[int, Grasp] = {}
         import ipctk
 
@@ -338,8 +340,8 @@ class ClothSimulator:
             grad += self.contact.gradient(col, x, u)
             contact = None
             hc = self.contact.hessian(col, x, u)
-            if it == 1:  # new contact pairs enter the pattern (one symbolic analysis) once per solve
-                self._pattern.grow_pending()
+            if it == 1:  # the pattern changes (one symbolic analysis) at most once per solve
+                self._pattern.begin_solve()
             if hc is not None:
                 slots, vals, _ = self._pattern.contact_slots(hc, grow=it == 1 or not cfg.defer_pattern_growth)
                 contact = (slots, vals)
@@ -378,6 +380,21 @@ class ClothSimulator:
                         f"{when}: line search stalled (Newton iteration {it}; slope {float(grad @ p.ravel()):.3g} J, "
                         f"closest contact {d0 * 1000:.4f} mm, offset {self.contact.xi * 1000:.4f} mm, "
                         f"residual {residual:.3g} m/s)")
+            slope = float(grad @ p.ravel())
+            if cfg.model_ratio > 0 and e0 - e_trial < cfg.model_ratio * -slope * alpha * (1 - 0.5 * alpha):
+                # The step gained far less than the quadratic model promised: a shorter step
+                # along the same direction may be better (this breaks the limit cycles in
+                # which contact pairs enter and leave the barrier's range every iteration).
+                while alpha > 0.5**cfg.max_line_search_halvings:
+                    shorter = x + 0.5 * alpha * p
+                    col_s = self.contact.build(shorter, cand)
+                    if not self.contact.separated(col_s, shorter):
+                        break
+                    e_s = self._energy(shorter, x_hat, x_prev, col_s, pull)
+                    if e_s >= e_trial:
+                        break
+                    trial, col_t, e_trial, alpha = shorter, col_s, e_s, 0.5 * alpha
+                    halvings += 1
             phases["line_search"] += time.perf_counter() - tic
             x = trial
             col = col_t
