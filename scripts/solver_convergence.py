@@ -28,11 +28,12 @@ SOLVER_FAILURES = ("did not converge", "line search stalled", "linear solve fail
 
 def _run(args: tuple[str, dict, int, float, float, str | None]) -> dict:
     from clothfold_ros.lookup.sweep import Job, run_job
-    from clothfold_ros.lookup.sweep_dir import SweepSettings
+    from clothfold_ros.lookup.sweep_dir import LEGACY_END_ANGLE_DEG, SweepSettings
 
     scenario, settings, point, h, tilt, start = args
     s = SweepSettings(scenario=scenario, max_area=settings["max_area"], dt=settings["dt"],
-                      settle_time=settings["settle_time"], newton_tol=settings["newton_tol"])
+                      settle_time=settings["settle_time"], newton_tol=settings["newton_tol"],
+                      end_angle_deg=settings.get("end_angle_deg", LEGACY_END_ANGLE_DEG))
     tic = time.perf_counter()
     row, _ = run_job(Job(s, point, h, tilt, start))
     row["scenario"] = scenario

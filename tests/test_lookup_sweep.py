@@ -103,3 +103,28 @@ def test_settings_mismatch_and_fan_selection(tmp_path: Path) -> None:
     assert 60 < len(alt) < 134 and {0, 1, 133}.issubset(set(alt.tolist()))
     with pytest.raises(ValueError):
         fan_points("7,999")
+
+
+def test_end_angle_is_a_sweep_setting_and_legacy_sweeps_were_175(tmp_path: Path) -> None:
+    from dataclasses import asdict
+
+    from clothfold_ros.lookup.scenario import spec_for
+    from clothfold_ros.lookup.sweep_dir import SETTINGS, read_settings
+
+    assert SweepSettings("T1").end_angle_deg == 170.0  # the study's simulations
+    legacy = {k: v for k, v in asdict(SweepSettings("T1", **TINY)).items() if k != "end_angle_deg"}
+    d = tmp_path / "T1"
+    d.mkdir()
+    (d / SETTINGS).write_text(json.dumps(legacy))
+    assert read_settings(d).end_angle_deg == 175.0
+    run_sweep(SweepSettings("T1", end_angle_deg=175.0, **TINY), d, [], workers=1, progress=False)  # resumes
+    with pytest.raises(ValueError, match="other settings"):
+        run_sweep(SweepSettings("T1", **TINY), d, [], workers=1, progress=False)
+    with pytest.raises(ValueError, match="end_angle_deg"):
+        SweepSettings("T1", end_angle_deg=190.0)
+    from clothfold_ros.garment import make_shirt
+
+    kp = make_shirt(1, max_area=1e-2).keypoints()
+    a, _ = spec_for("left_sleeve", kp, end_angle_deg=170.0)
+    b, _ = spec_for("left_sleeve", kp, end_angle_deg=175.0)
+    assert not np.allclose(a.end_poses[0].position, b.end_poses[0].position)

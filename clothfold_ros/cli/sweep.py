@@ -5,6 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..lookup.sweep_dir import STUDY_END_ANGLE_DEG
 from ..sim.config import SimConfig
 from ._options import TABLES_ROOT, add_stepping_options, output_tables, shipped_tables
 
@@ -24,6 +25,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_stepping_options(p)
     p.add_argument("--max-newton", type=int, default=SimConfig.max_newton_iterations,
                    help="Newton iterations per step before failing (default: the simulator's)")
+    p.add_argument("--end-angle", type=float, default=STUDY_END_ANGLE_DEG,
+                   help=f"fold end pose rotation about the fold line (deg; default {STUDY_END_ANGLE_DEG:g}, the "
+                   "study's simulations; the resolution study and the 1.2K tables were made at 175)")
     p.add_argument("--workers", type=int, default=None, help="local processes (default: number of cores)")
     p.add_argument("--ray", default=None, metavar="ADDRESS",
                    help="run on Ray: a cluster address, 'auto', or 'local' (a private single-node Ray here)")
@@ -38,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         sc = scenario(args.scenario)
         points = fan_points(args.points).tolist()
-        settings = SweepSettings(sc.name, args.max_area, args.dt, args.settle, args.newton_tol, args.max_newton)
+        settings = SweepSettings(sc.name, args.max_area, args.dt, args.settle, args.newton_tol, args.max_newton,
+                                 args.end_angle)
     except ValueError as err:
         print(f"clothfold sweep: {err}", file=sys.stderr)
         return 2
@@ -46,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     d = out / sc.name
     prev = None if sc.after is None else previous_stage(out, sc.after)
     command = (f"clothfold sweep {sc.name} --points {args.points} --max-area {args.max_area} --dt {args.dt} "
-               f"--settle {args.settle} --newton-tol {args.newton_tol} --max-newton {args.max_newton} --out {out}")
+               f"--settle {args.settle} --newton-tol {args.newton_tol} --max-newton {args.max_newton} "
+               f"--end-angle {args.end_angle:g} --out {out}")
     try:
         rows = run_sweep(settings, d, points, workers=args.workers, ray_address=args.ray, previous_dir=prev,
                          progress=not args.quiet)

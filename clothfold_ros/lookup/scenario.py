@@ -122,16 +122,17 @@ def grip_distance(spec) -> float:
 
 
 def spec_for(fold_name: str, keypoints: Mapping[str, np.ndarray],
-             fallback_keypoints: Mapping[str, np.ndarray] | None = None) -> tuple[object, str]:
+             fallback_keypoints: Mapping[str, np.ndarray] | None = None,
+             end_angle_deg: float = 175.0) -> tuple[object, str]:
     """(FoldSpec, note) from `keypoints`; if they give no valid fold (e.g. coinciding
     hem corners after the side folds) and `fallback_keypoints` (the flat shirt's) are
     given, the spec comes from those and the note says why. Otherwise the error is raised."""
     try:
-        return fold_spec(fold_name, keypoints), "spec from the current keypoints"
+        return fold_spec(fold_name, keypoints, end_angle_deg), "spec from the current keypoints"
     except ValueError as err:
         if fallback_keypoints is None:
             raise ValueError(f"no fold spec for {fold_name!r} from these keypoints: {err}") from err
-        return (fold_spec(fold_name, fallback_keypoints),
+        return (fold_spec(fold_name, fallback_keypoints, end_angle_deg),
                 f"spec from the flat shirt's keypoints (current keypoints invalid: {err})")
 
 

@@ -109,7 +109,7 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
     final = None
     for fold in sc.folds:
         try:
-            spec, _ = spec_for(fold, kp_start, garment.keypoints(flat))
+            spec, _ = spec_for(fold, kp_start, garment.keypoints(flat), s.end_angle_deg)
             out = runner.run_fold(garment, spec, mat, scene.friction, job.height_ratio, job.tilt_deg, sc.duration,
                                   s.dt, s.settle_time, vertices=x, target_base=base, config=scene.config)
         except Exception as err:  # a broken setup is recorded like a failed simulation
@@ -145,8 +145,10 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
             raise ValueError(f"scenario {sc.name!r} starts from {sc.after!r}, whose sweep in {previous_dir} "
                              f"is running or unfinished (no table written yet)")
         prev = layout.read_settings(previous_dir)
-        if prev.max_area != settings.max_area:
-            raise ValueError(f"{sc.after!r} was swept at max_area {prev.max_area}, this sweep uses {settings.max_area}")
+        for key in ("max_area", "end_angle_deg"):
+            if getattr(prev, key) != getattr(settings, key):
+                raise ValueError(f"{sc.after!r} was swept at {key} {getattr(prev, key)}, this sweep uses "
+                                 f"{getattr(settings, key)}")
         best = layout.best_row(layout.read_runs(previous_dir))
         if best is None:
             raise ValueError(f"scenario {sc.after!r} has no successful run to start {sc.name!r} from")
@@ -154,7 +156,7 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
         path = layout.write_start(sweep_dir, x, stage_target(previous_dir, garment))
         info.update(start_from=sc.after, start_point=int(best["point"]), start_loss_m=best["loss_m"])
     kp = garment.keypoints(x)
-    spec, note = spec_for(sc.folds[0], kp, garment.keypoints(flat))
+    spec, note = spec_for(sc.folds[0], kp, garment.keypoints(flat), settings.end_angle_deg)
     info["spec_note"] = note
     info["features"] = features(fold_name=sc.folds[0], keypoints=kp, material_name=sc.material,
                                 friction=sc.friction, duration=sc.duration,
@@ -165,14 +167,15 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
 def stage_target(d: str | Path, garment: Garment) -> np.ndarray:
     """The composed target (N, 3) m after the folds of the stage swept in `d`
     (recomputed from its start state and the fold specs)."""
-    sc = scenario(layout.read_settings(d).scenario)
+    settings = layout.read_settings(d)
+    sc = scenario(settings.scenario)
     mat = material(sc.material)
     flat = flat_start(garment, mat)
     start = layout.start_file(d)
     x, base = read_start(start) if start else (flat, flat)
     kp = garment.keypoints(x)
     for fold in sc.folds:
-        spec, _ = spec_for(fold, kp, garment.keypoints(flat))
+        spec, _ = spec_for(fold, kp, garment.keypoints(flat), settings.end_angle_deg)
         base = fold_target(base, spec, mat.thickness)
     return base
 

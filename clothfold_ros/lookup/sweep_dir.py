@@ -42,6 +42,8 @@ PROVENANCE = "provenance.json"
 LANDSCAPE_PNG = "landscape.png"
 BEST_WORST_PNG = "best_worst.png"
 LOCK = ".lock"
+STUDY_END_ANGLE_DEG = 170.0  # the end angle of the study's simulations (docs/method.md)
+LEGACY_END_ANGLE_DEG = 175.0  # sweeps whose settings.json predates the field were made with this
 
 
 @dataclass(frozen=True)
@@ -54,9 +56,12 @@ class SweepSettings:
     settle_time: float = 0.2
     newton_tol: float = SimConfig.newton_tol
     max_newton_iterations: int = SimConfig.max_newton_iterations
+    end_angle_deg: float = STUDY_END_ANGLE_DEG  # fold end pose: start pose rotated this much about the line
 
     def __post_init__(self) -> None:
         scenario(self.scenario)
+        if not (math.isfinite(self.end_angle_deg) and 0.0 < self.end_angle_deg <= 180.0):
+            raise ValueError(f"end_angle_deg must be in (0, 180], got {self.end_angle_deg}")
         for k in ("max_area", "dt", "newton_tol"):
             if not (math.isfinite(getattr(self, k)) and getattr(self, k) > 0):
                 raise ValueError(f"{k} must be > 0, got {getattr(self, k)}")
@@ -70,16 +75,23 @@ def final_key(point: int) -> str:
 
 
 # -- settings and scenario info ----------------------------------------------------------
+def _settings_dict(text: str) -> dict:
+    """settings.json as a dict, with the end angle filled in for sweeps that predate it."""
+    d = json.loads(text)
+    d.setdefault("end_angle_deg", LEGACY_END_ANGLE_DEG)
+    return d
+
+
 def read_settings(d: str | Path) -> SweepSettings:
     """The settings a sweep directory was made with."""
-    return SweepSettings(**json.loads((Path(d) / SETTINGS).read_text()))
+    return SweepSettings(**_settings_dict((Path(d) / SETTINGS).read_text()))
 
 
 def claim_settings(d: str | Path, settings: SweepSettings) -> None:
     """Write `settings` into a new sweep directory, or check they equal the ones there."""
     p, want = Path(d) / SETTINGS, asdict(settings)
     if p.exists():
-        have = json.loads(p.read_text())
+        have = _settings_dict(p.read_text())
         if have != want:
             raise ValueError(f"{d} holds a sweep with other settings {have}; use another directory "
                              f"(or delete it) to sweep {want}")
