@@ -9,6 +9,11 @@ that stopped, its reason. A solver failure ("Newton did not converge",
 grippers force the cloth into itself) may be reported as a result.
 
     python scripts/solver_convergence.py [--tables config/tables] [--workers 2] [--points tilt60,table]
+                                         [--also shape1:2e-4:2 ...]
+
+--also SCENARIO:MAX_AREA:POINT adds one fan point of a scenario's table at another mesh
+resolution (default: shape1 fan point 2, h 0.169 tilt 60, at 3K triangles, which stalled in a
+contact limit cycle at t = 2.32 s during the resolution study).
 """
 from __future__ import annotations
 
@@ -37,6 +42,7 @@ def _run(args: tuple[str, dict, int, float, float, str | None]) -> dict:
     tic = time.perf_counter()
     row, _ = run_job(Job(s, point, h, tilt, start))
     row["scenario"] = scenario
+    row["max_area"] = settings["max_area"]
     row["wall_s"] = time.perf_counter() - tic
     return row
 
@@ -47,6 +53,8 @@ def main() -> int:
     ap.add_argument("--scenarios", nargs="+", default=["shape1", "both_sleeves"])
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--points", default="tilt60,table", help="tilt60 and/or table (the table's own points)")
+    ap.add_argument("--also", nargs="*", default=["shape1:2e-4:2"], metavar="SCENARIO:MAX_AREA:POINT",
+                    help="extra runs: a table's scenario at another resolution")
     args = ap.parse_args()
     sys.path.insert(0, str(ROOT))
     from clothfold_ros.trajectory import fan
@@ -63,7 +71,13 @@ def main() -> int:
         if "table" in args.points:
             pts |= {json.loads(ln)["point"] for ln in (d / "runs.jsonl").read_text().splitlines() if ln.strip()}
         jobs += [(sc, settings, int(i), float(f[i, 0]), float(f[i, 1]), start) for i in sorted(pts)]
-    print(f"{len(jobs)} runs on {args.workers} worker(s): " + ", ".join(args.scenarios), flush=True)
+    for extra in args.also:
+        sc, area, point = extra.split(":")
+        d = args.tables / sc
+        settings = dict(json.loads((d / "settings.json").read_text()), max_area=float(area))
+        start = str(d / "start.npz") if (d / "start.npz").exists() else None
+        jobs.append((sc, settings, int(point), float(f[int(point), 0]), float(f[int(point), 1]), start))
+    print(f"{len(jobs)} runs on {args.workers} worker(s): " + ", ".join(args.scenarios + args.also), flush=True)
     solver_failures = physical = 0
     with ProcessPoolExecutor(args.workers) as pool:
         for row in pool.map(_run, jobs):
@@ -72,7 +86,8 @@ def main() -> int:
             solver_failures += kind == "SOLVER FAILURE"
             physical += kind == "physical failure"
             loss = f"{row['loss_m'] * 1000:7.2f} mm" if row["success"] else "   -   "
-            print(f"  {row['scenario']:<13} fan {row['point']:3d} (h {row['height_ratio']:.3f}, tilt {row['tilt_deg']:4.1f}): "
+            area = f"@{row['max_area']:g}" if row["max_area"] != 5e-4 else ""
+            print(f"  {row['scenario'] + area:<13} fan {row['point']:3d} (h {row['height_ratio']:.3f}, tilt {row['tilt_deg']:4.1f}): "
                   f"{kind:<16} loss {loss}  {row['newton_iterations'] / max(row['steps'], 1):5.1f} its/step  "
                   f"{row['wall_s']:6.1f} s  {reason}", flush=True)
     print(f"solver failures: {solver_failures}; physical failures: {physical}; runs: {len(jobs)}")

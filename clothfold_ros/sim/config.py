@@ -35,6 +35,7 @@ class SimConfig:
     table_margin: float = 0.05  # m the table extends beyond the cloth's rest footprint
     check_intersections: bool = True  # assert intersection-free after every step
     threads: int = 1  # ipctk threads (1 keeps results bit-for-bit deterministic)
+    solver_threads: int = 1  # PARDISO threads (bit-for-bit reproducible with any count: MKL's CNR mode)
 
     def __post_init__(self) -> None:
         if not self.dt > 0:

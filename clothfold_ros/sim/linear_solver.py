@@ -6,17 +6,21 @@ analysis (reordering, phase 11) once per pattern and only the numeric factorizat
 (phase 22) and the solve (phase 33) per Newton iteration. Indices are zero-based
 (iparm[34] = 1) and the matrix type is real SPD (mtype 2), so nothing is copied.
 
-PARDISO runs on one MKL thread (thread-local setting): a threaded factorization sums in
-a run-dependent order and the simulator promises bit-for-bit reproducible results.
+PARDISO runs on `threads` MKL threads (a thread-local setting, default 1). With more than
+one, MKL's conditional numerical reproducibility mode (MKL_CBWR, set before MKL loads)
+and PARDISO's CNR thread count (iparm[33]) keep results bit-for-bit reproducible for a
+given thread count.
 """
 from __future__ import annotations
 
 import ctypes
+import os
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+os.environ.setdefault("MKL_CBWR", "AUTO")  # reproducible threaded PARDISO; read when MKL loads
 try:  # MKL PARDISO through the library handle pypardiso loads (pypardiso finds mkl_rt).
     import pypardiso
 
@@ -38,10 +42,10 @@ class PardisoSPD:
 
     ORDERINGS = {"minimum_degree": 0, "metis": 2}  # iparm[1]
 
-    def __init__(self, ordering: str = "minimum_degree", refinement_steps: int = 0) -> None:
+    def __init__(self, ordering: str = "minimum_degree", refinement_steps: int = 0, threads: int = 1) -> None:
         """ordering: fill-reducing ordering (minimum degree fills less than METIS on these cloth
         matrices); refinement_steps: iterative refinement steps per solve (0: with the diagonal
-        scaling the residual is ~1e-13 without)."""
+        scaling the residual is ~1e-13 without); threads: MKL threads (reproducible per count)."""
         if not _HAVE_PARDISO:
             raise ImportError("pypardiso (MKL) is not installed")
         if ordering not in self.ORDERINGS:
@@ -57,6 +61,10 @@ class PardisoSPD:
         self._iparm[1] = self.ORDERINGS[ordering]
         self._iparm[7] = int(refinement_steps)
         self._iparm[34] = 1  # zero-based indices
+        if threads < 1:
+            raise ValueError(f"threads must be >= 1, got {threads}")
+        self.threads = int(threads)
+        self._iparm[33] = self.threads if self.threads > 1 else 0  # CNR: reproducible for this thread count
         self._perm = np.zeros(0, dtype=np.int32)
         self._n = 0
         self._indptr = self._indices = None
@@ -75,7 +83,7 @@ class PardisoSPD:
         b = np.zeros(self._n) if rhs is None else np.ascontiguousarray(rhs, dtype=float)
         x = np.zeros(self._n)
         err = ctypes.c_int32(0)
-        previous = self._mkl.MKL_Set_Num_Threads_Local(1)
+        previous = self._mkl.MKL_Set_Num_Threads_Local(self.threads)
         try:
             self._pardiso(
                 self._pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(ctypes.c_int32(1)),
@@ -148,12 +156,12 @@ class ScipySPD:
         return self._lu.solve(np.asarray(rhs, dtype=float))
 
 
-def spd_solver(backend: str = "auto") -> PardisoSPD | ScipySPD:
+def spd_solver(backend: str = "auto", threads: int = 1) -> PardisoSPD | ScipySPD:
     """The fastest SPD solver available ("auto"), or "pardiso" / "superlu" by name."""
     if backend == "auto":
         backend = "pardiso" if _HAVE_PARDISO else "superlu"
     if backend == "pardiso":
-        return PardisoSPD()
+        return PardisoSPD(threads=threads)
     if backend == "superlu":
         return ScipySPD()
     raise ValueError(f"unknown linear solver {backend!r} (pardiso, superlu, auto)")
