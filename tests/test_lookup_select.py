@@ -103,7 +103,8 @@ def _write_table_dir(d: Path, t: Table, with_finals: bool = False) -> None:
                         "height_ratio": t.height_ratio[i], "tilt_deg": t.tilt_deg[i], "loss_m": t.loss[i],
                         "success": int(t.success[i]), "reason": t.reason[i], "wall_time_s": 1.0,
                         "newton_iterations": 10, "steps": 5, "max_area_m2": 4e-3, "vertices": 3})
-    (d / "provenance.json").write_text(json.dumps({"resolution": {"max_area_m2": 4e-3}}))
+    settings = {} if t.name == "shape1" else {"settings": {"end_angle_deg": 170.0}}  # shape1: legacy (175)
+    (d / "provenance.json").write_text(json.dumps({"resolution": {"max_area_m2": 4e-3}, **settings}))
     if with_finals:
         tri = np.array([[0, 1, 2]])
         target = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float32)
@@ -138,8 +139,10 @@ def test_table_selector(tmp_path: Path) -> None:
     s = sel.select(fold_name="right_sleeve", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=0)
     assert isinstance(s, Selection) and s.scenario == "shape1"
     assert (s.height_ratio, s.tilt_deg) == (FAN[66, 0], FAN[66, 1]) and s.expected_loss > 0 and "66" in s.note
+    assert s.end_angle_deg == 175.0  # a table whose settings predate the end angle was made at 175 deg
     s = sel.select(fold_name="middle", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=4)
     assert s.scenario == "middle" and (s.height_ratio, s.tilt_deg) == (FAN[99, 0], FAN[99, 1])
+    assert s.end_angle_deg == 170.0  # the execution uses the table's own end angle
     with pytest.raises(ValueError):
         sel.select(fold_name="collar", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=0)
     with pytest.raises(ValueError):

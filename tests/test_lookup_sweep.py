@@ -128,3 +128,31 @@ def test_end_angle_is_a_sweep_setting_and_legacy_sweeps_were_175(tmp_path: Path)
     a, _ = spec_for("left_sleeve", kp, end_angle_deg=170.0)
     b, _ = spec_for("left_sleeve", kp, end_angle_deg=175.0)
     assert not np.allclose(a.end_poses[0].position, b.end_poses[0].position)
+
+
+def test_table_only_writes_a_partial_table_and_stages_refuse_to_start_from_it(tmp_path: Path) -> None:
+    from clothfold_ros.cli import main
+    from clothfold_ros.lookup.sweep_dir import is_complete
+
+    area = str(TINY["max_area"])
+    run_sweep(SweepSettings("T1", **TINY), tmp_path / "T1", [96], workers=1, progress=False)
+    assert main(["sweep", "T1", "--out", str(tmp_path), "--max-area", area, "--points", "96,133",
+                 "--table-only"]) == 0
+    prov = json.loads((tmp_path / "T1" / "provenance.json").read_text())
+    assert prov["simulated"] == 1 and prov["missing_points"] == [133] and not prov["complete"]
+    assert len(read_runs(tmp_path / "T1" / "runs.jsonl")) == 1  # nothing was simulated
+    assert not is_complete(tmp_path / "T1")
+    # other settings than the sweep's are refused, and an empty directory has nothing to tabulate
+    assert main(["sweep", "T1", "--out", str(tmp_path), "--max-area", "2e-2", "--points", "96", "--table-only"]) == 2
+    assert main(["sweep", "T2", "--out", str(tmp_path), "--max-area", area, "--table-only"]) == 2
+    # a sequence stage does not start from a partial table of the stage before it
+    run_sweep(SweepSettings("shape1", **TINY), tmp_path / "shape1", [], workers=1, progress=False)
+    assert main(["sweep", "shape1", "--out", str(tmp_path), "--max-area", area, "--points", "96",
+                 "--table-only"]) == 2  # no runs yet
+    (tmp_path / "shape1" / "runs.jsonl").write_text(
+        (tmp_path / "T1" / "runs.jsonl").read_text())  # one row stands in for a run
+    assert main(["sweep", "shape1", "--out", str(tmp_path), "--max-area", area, "--points", "96,133",
+                 "--table-only"]) == 0
+    with pytest.raises(ValueError, match="partial"):
+        run_sweep(SweepSettings("both_sleeves", **TINY), tmp_path / "both_sleeves", [96], workers=1, progress=False,
+                  previous_dir=tmp_path / "shape1")

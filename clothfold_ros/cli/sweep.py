@@ -32,6 +32,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ray", default=None, metavar="ADDRESS",
                    help="run on Ray: a cluster address, 'auto', or 'local' (a private single-node Ray here)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--table-only", action="store_true",
+                   help="simulate nothing: write the (partial) table of the runs done so far; its provenance "
+                   "lists the missing points")
     p.set_defaults(func=run)
 
 
@@ -53,6 +56,21 @@ def run(args: argparse.Namespace) -> int:
     command = (f"clothfold sweep {sc.name} --points {args.points} --max-area {args.max_area} --dt {args.dt} "
                f"--settle {args.settle} --newton-tol {args.newton_tol} --max-newton {args.max_newton} "
                f"--end-angle {args.end_angle:g} --out {out}")
+    if args.table_only:
+        from ..lookup.sweep_dir import Lock, claim_settings, has_runs
+
+        if not has_runs(d):
+            print(f"clothfold sweep: {d} holds no runs to tabulate", file=sys.stderr)
+            return 2
+        try:
+            with Lock(d):  # not while a sweep runs here
+                claim_settings(d, settings)
+                table = finish(d, command, points)
+        except (ValueError, RuntimeError) as err:
+            print(f"clothfold sweep: {err}", file=sys.stderr)
+            return 2
+        print(f"{sc.name}: table of the runs so far -> {table}")
+        return 0
     try:
         rows = run_sweep(settings, d, points, workers=args.workers, ray_address=args.ray, previous_dir=prev,
                          progress=not args.quiet)

@@ -10,6 +10,7 @@ import numpy as np
 
 from .scenario import STAGE_OF_FOLD, features
 from .select import choose
+from .sweep_dir import LEGACY_END_ANGLE_DEG
 from .table import load_tables
 
 
@@ -22,6 +23,7 @@ class Selection:
     scenario: str
     expected_loss: float
     note: str
+    end_angle_deg: float  # the end angle the table's folds were simulated with (use it to execute)
 
 
 class TableSelector:
@@ -65,4 +67,5 @@ class TableSelector:
                 f"table max_area {t.provenance.get('resolution', {}).get('max_area_m2')} m^2")
         if self.unusable:
             note += f"; skipped (no successful run): {', '.join(self.unusable)}"
-        return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note)
+        end_angle = float(t.provenance.get("settings", {}).get("end_angle_deg", LEGACY_END_ANGLE_DEG))
+        return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note, end_angle)

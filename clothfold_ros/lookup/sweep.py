@@ -144,6 +144,9 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
         if not layout.is_finished(previous_dir):
             raise ValueError(f"scenario {sc.name!r} starts from {sc.after!r}, whose sweep in {previous_dir} "
                              f"is running or unfinished (no table written yet)")
+        if not layout.is_complete(previous_dir):
+            raise ValueError(f"scenario {sc.name!r} starts from {sc.after!r}, whose table in {previous_dir} is "
+                             f"partial (its provenance lists missing points): finish that sweep first")
         prev = layout.read_settings(previous_dir)
         for key in ("max_area", "end_angle_deg"):
             if getattr(prev, key) != getattr(settings, key):

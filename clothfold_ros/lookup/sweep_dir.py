@@ -114,6 +114,14 @@ def is_finished(d: str | Path) -> bool:
     return (Path(d) / PROVENANCE).exists() and not (Path(d) / LOCK).exists()
 
 
+def is_complete(d: str | Path) -> bool:
+    """True when the table written in `d` covers every fan point its sweep was asked for."""
+    try:
+        return bool(json.loads((Path(d) / PROVENANCE).read_text()).get("complete", False))
+    except (OSError, json.JSONDecodeError):
+        return False
+
+
 # -- start state of a sequence stage ------------------------------------------------------
 def start_file(d: str | Path) -> str | None:
     """Path of the stage's start.npz (None: the scenario starts flat)."""

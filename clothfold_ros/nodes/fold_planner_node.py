@@ -48,7 +48,8 @@ PARAMS = [
     Param("friction", 0.5, "friction coefficient assumed for table selection (-)", range=(0.0, 2.0)),
     Param("duration", 4.0, "fold motion duration (s)", range=DURATION_RANGE),
     Param("settle_time", 0.2, "settle time after release (s)", range=(0.0, 10.0)),
-    Param("end_angle_deg", 175.0, "end pose: start pose rotated this much about the fold line (deg)",
+    Param("end_angle_deg", 175.0, "end pose: start pose rotated this much about the fold line (deg) when "
+          "selection = parameter; a table's choice uses the table's own end angle",
           range=(1.0, 180.0)),
     Param("end_height", 0.05, "end pose height above the table (m)", range=(0.0, 0.5)),
     Param("goal_timeout", 10.0, "wait this long for trajectory_node to accept a goal (s)", range=(0.1, 600.0)),
@@ -125,22 +126,24 @@ class FoldPlannerNode(Node):
             raise RuntimeError(self._selector_error)
         return self._selector
 
-    def select(self, name: str, keypoints: dict) -> tuple[float, float, str]:
-        """(height ratio, tilt deg, note) for the fold."""
+    def select(self, name: str, keypoints: dict) -> tuple[float, float, float, str]:
+        """(height ratio, tilt deg, end angle deg, note) for the fold: a table's choice comes
+        with the end angle its folds were simulated with."""
         h, tilt = params.value(self, "height_ratio"), params.value(self, "tilt_deg")
+        end_angle = params.value(self, "end_angle_deg")
         if params.value(self, "selection") == "parameter":
-            return h, tilt, "from parameters"
+            return h, tilt, end_angle, "from parameters"
         try:
             s = self.selector().select(fold_name=name, keypoints=keypoints, material=params.value(self, "material"),
                                        friction=params.value(self, "friction"),
                                        duration=params.value(self, "duration"), stage=FOLD_SEQUENCE.index(name))
-            return float(s.height_ratio), float(s.tilt_deg), \
-                f"table {s.scenario}: expected loss {s.expected_loss:.4f} m; {s.note}"
+            return float(s.height_ratio), float(s.tilt_deg), s.end_angle_deg, \
+                f"table {s.scenario}: expected loss {s.expected_loss:.4f} m; {s.note}; end angle {s.end_angle_deg:g} deg"
         except Exception as err:  # noqa: BLE001
             if not params.value(self, "fallback_to_parameters"):
                 raise RuntimeError(f"table selection failed: {err}") from err
             self.get_logger().warn(f"table selection failed ({err}); falling back to parameters as configured")
-            return h, tilt, f"from parameters (table failed: {err})"
+            return h, tilt, end_angle, f"from parameters (table failed: {err})"
 
     # -- service --------------------------------------------------------------------------------
     def on_plan(self, req: PlanFold.Request, resp: PlanFold.Response) -> PlanFold.Response:
@@ -182,9 +185,8 @@ class FoldPlannerNode(Node):
             kp, stamp, done = self.keypoints, self.keypoints_stamp, list(self.folds_done)
         if kp is None:
             raise ValueError(f"no keypoints received on {common.KEYPOINTS} yet")
-        spec = fold_spec(name, kp, params.value(self, "end_angle_deg"), params.value(self, "end_height"),
-                         folds_done=done)
-        h, tilt, note = self.select(name, kp)
+        h, tilt, end_angle, note = self.select(name, kp)
+        spec = fold_spec(name, kp, end_angle, params.value(self, "end_height"), folds_done=done)
         self.get_logger().info(f"{name}: h={h:g}, tilt={tilt:g} deg ({note}); keypoints stamped {stamp * 1e-9:.3f} s")
         return rc.fold_spec_to_msg(rc.PlannedFold(spec, h, tilt, params.value(self, "duration"),
                                                   params.value(self, "settle_time"), FOLD_SEQUENCE.index(name),
