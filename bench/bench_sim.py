@@ -10,10 +10,12 @@ It prints wall time, Newton iterations per step, the phase split, the loss of fa
 reference and the mean / max per-vertex distance between their final meshes, and the
 ratios to the baseline and to the targets (20 s at ~3K triangles, 90 s at ~12K).
 `--fan N` also runs N fan points (spread over h and tilt) fast and tight at
-`--fan-area` and prints the Spearman rank correlation of their losses.
+`--fan-area` and prints the Spearman rank correlation of their losses. `--tols` also runs
+the fold at other Newton tolerances and compares each with the reference (the stopping
+rule's calibration).
 
     python bench/bench_sim.py [--areas 2e-4 5e-5] [--baseline a11945f | --no-baseline]
-                              [--no-reference] [--fan 8 --fan-area 5e-4 [--fan-only]]
+                              [--no-reference] [--tols 3e-3 1e-2] [--fan 8 --fan-area 5e-4 [--fan-only]]
 """
 from __future__ import annotations
 
@@ -126,6 +128,7 @@ def main() -> None:
     ap.add_argument("--no-baseline", action="store_true")
     ap.add_argument("--no-reference", action="store_true")
     ap.add_argument("--baseline-only", action="store_true", help="only the comparison with the earlier solver")
+    ap.add_argument("--tols", type=float, nargs="*", default=[], help="other Newton tolerances to compare (m/s)")
     ap.add_argument("--fan", type=int, default=0, help="also check this many fan points against the reference")
     ap.add_argument("--fan-area", type=float, default=5e-4)
     ap.add_argument("--fan-only", action="store_true", help="only the fan-subset check")
@@ -156,6 +159,13 @@ def main() -> None:
                         dist = np.linalg.norm(fast["final"] - ref["final"], axis=1)
                         print(f"             fast - reference: loss {1000 * (fast['loss'] - ref['loss']):+.2f} mm; final meshes "
                               f"{dist.mean() * 1000:.2f} mm mean, {dist.max() * 1000:.2f} mm max per vertex")
+                    for other in args.tols:
+                        r = run_worker(ROOT, area, *FAN_POINT, other, cfg.max_newton_iterations, tmp)
+                        print(describe(f"tol {other:g}", r), flush=True)
+                        if r["ok"] and ref["ok"]:
+                            dist = np.linalg.norm(r["final"] - ref["final"], axis=1)
+                            print(f"             - reference: loss {1000 * (r['loss'] - ref['loss']):+.2f} mm; final "
+                                  f"meshes {dist.mean() * 1000:.2f} mm mean, {dist.max() * 1000:.2f} mm max per vertex")
                 if base is not None:
                     now = run_worker(ROOT, area, *BASELINE_POINT, tol, cfg.max_newton_iterations, tmp)
                     old = run_worker(base, area, *BASELINE_POINT, tol, 80, tmp)

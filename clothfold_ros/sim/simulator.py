@@ -356,47 +356,10 @@ class ClothSimulator:
             residuals.append(residual)
             if len(residuals) >= cfg.newton_window and max(residuals[-cfg.newton_window :]) <= cfg.newton_tol:
                 return x, it, halvings, residual, col
-            # Line search: CCD bound, then backtracking on the incremental potential.
-            tic = time.perf_counter()
-            cand = self.contact.candidates(x, x + p)  # one candidate set for CCD and line search
-            alpha = min(1.0, self.contact.max_step(x, x + p, cand))
-            phases["ccd"] += time.perf_counter() - tic
-            if alpha <= 0.0:
-                raise SimulationFailure(f"{when}: CCD allows no step (contact locked)")
-            tic = time.perf_counter()
-            e0 = self._energy(x, x_hat, x_prev, col, pull)
-            while True:
-                trial = x + alpha * p
-                col_t = self.contact.build(trial, cand)
-                if self.contact.separated(col_t, trial):
-                    e_trial = self._energy(trial, x_hat, x_prev, col_t, pull)
-                    if e_trial <= e0:
-                        break
-                alpha *= 0.5
-                halvings += 1
-                if alpha < 0.5**cfg.max_line_search_halvings:
-                    d0 = self.contact.min_distance(self.contact.build(x, cand), x)
-                    raise SimulationFailure(
-                        f"{when}: line search stalled (Newton iteration {it}; slope {float(grad @ p.ravel()):.3g} J, "
-                        f"closest contact {d0 * 1000:.4f} mm, offset {self.contact.xi * 1000:.4f} mm, "
-                        f"residual {residual:.3g} m/s)")
-            slope = float(grad @ p.ravel())
-            if cfg.model_ratio > 0 and e0 - e_trial < cfg.model_ratio * -slope * alpha * (1 - 0.5 * alpha):
-                # The step gained far less than the quadratic model promised: a shorter step
-                # along the same direction may be better (this breaks the limit cycles in
-                # which contact pairs enter and leave the barrier's range every iteration).
-                while alpha > 0.5**cfg.max_line_search_halvings:
-                    shorter = x + 0.5 * alpha * p
-                    col_s = self.contact.build(shorter, cand)
-                    if not self.contact.separated(col_s, shorter):
-                        break
-                    e_s = self._energy(shorter, x_hat, x_prev, col_s, pull)
-                    if e_s >= e_trial:
-                        break
-                    trial, col_t, e_trial, alpha = shorter, col_s, e_s, 0.5 * alpha
-                    halvings += 1
-            phases["line_search"] += time.perf_counter() - tic
-            x = trial
+            x_new, col_t, n_halved = self._line_search(x, p, grad, x_hat, x_prev, col, pull, phases, when,
+                                                       f"Newton iteration {it}, residual {residual:.3g} m/s")
+            halvings += n_halved
+            x = x_new
             col = col_t
             min_d = self.contact.min_distance(col_t, x)
             if np.isfinite(min_d):
@@ -406,3 +369,52 @@ class ClothSimulator:
             f"{when}: Newton did not converge in {cfg.max_newton_iterations} iterations "
             f"(residual {residuals[-1]:.3g} m/s)"
         )
+
+    def _line_search(self, x, p, grad, x_hat, x_prev, col, pull, phases, when: str, context: str):
+        """Step length along the Newton direction p: (new x, its collisions, halvings).
+
+        CCD bounds the step (every point of the path keeps ccd_fraction x xi apart), then
+        it is halved until the state is more than xi apart everywhere and the incremental
+        potential does not rise. A step that gains less than model_ratio of the decrease
+        its quadratic model promised, g.p (alpha - alpha^2 / 2), also tries shorter steps
+        along p and keeps the best: this ends the limit cycles in which contact pairs enter
+        and leave the barrier's range every iteration.
+        """
+        cfg = self.config
+        tic = time.perf_counter()
+        cand = self.contact.candidates(x, x + p)  # one candidate set for CCD and line search
+        alpha = min(1.0, self.contact.max_step(x, x + p, cand))
+        phases["ccd"] += time.perf_counter() - tic
+        if alpha <= 0.0:
+            raise SimulationFailure(f"{when}: CCD allows no step (contact locked)")
+        tic = time.perf_counter()
+        smallest = 0.5**cfg.max_line_search_halvings
+        slope = float(grad @ p.ravel())
+        e0 = self._energy(x, x_hat, x_prev, col, pull)
+        halvings = 0
+        while True:
+            trial = x + alpha * p
+            col_t = self.contact.build(trial, cand)
+            if self.contact.separated(col_t, trial):
+                e_trial = self._energy(trial, x_hat, x_prev, col_t, pull)
+                if e_trial <= e0:
+                    break
+            alpha *= 0.5
+            halvings += 1
+            if alpha < smallest:
+                d0 = self.contact.min_distance(self.contact.build(x, cand), x)
+                raise SimulationFailure(f"{when}: line search stalled ({context}; slope {slope:.3g} J, closest "
+                                        f"contact {d0 * 1000:.4f} mm, offset {self.contact.xi * 1000:.4f} mm)")
+        if cfg.model_ratio > 0 and e0 - e_trial < cfg.model_ratio * -slope * alpha * (1 - 0.5 * alpha):
+            while alpha > smallest:
+                shorter = x + 0.5 * alpha * p
+                col_s = self.contact.build(shorter, cand)
+                if not self.contact.separated(col_s, shorter):
+                    break
+                e_s = self._energy(shorter, x_hat, x_prev, col_s, pull)
+                if e_s >= e_trial:
+                    break
+                trial, col_t, e_trial, alpha = shorter, col_s, e_s, 0.5 * alpha
+                halvings += 1
+        phases["line_search"] += time.perf_counter() - tic
+        return trial, col_t, halvings
