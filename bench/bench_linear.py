@@ -2,7 +2,10 @@
 PARDISO with the simulator's settings and with the previous ones (METIS ordering, two
 iterative-refinement steps), in the same run.
 
-    python bench/bench_linear.py [--areas 2e-4 5e-5] [--steps 3] [--repeat 10]
+    python bench/bench_linear.py [--areas 2e-4 5e-5] [--steps 3] [--repeat 10] [--threads 2]
+
+`--threads N` adds the current settings on N MKL threads (CNR mode) and checks that the
+solution is bit-for-bit the one-thread solution.
 
 For each mesh it steps the default left-sleeve fold `--steps` steps, takes the last Newton
 matrix (diagonally scaled, as the simulator factorizes it), and prints per setting the factor's
@@ -78,7 +81,7 @@ def measure(data, indptr, indices, rhs, repeat: int, **kwargs) -> dict:
     full = upper + sp.triu(upper, k=1).T
     res = float(np.linalg.norm(full @ x - rhs) / np.linalg.norm(rhs))
     return dict(nnz=s.factor_nonzeros, mflop=s.factor_mflop, factor=float(np.median(t_f)),
-                solve=float(np.median(t_s)), residual=res)
+                solve=float(np.median(t_s)), residual=res, x=x)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -86,6 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--areas", type=float, nargs="+", default=[2e-4, 5e-5])
     ap.add_argument("--steps", type=int, default=3)
     ap.add_argument("--repeat", type=int, default=10)
+    ap.add_argument("--threads", type=int, default=1, help="also time the current settings on this many threads")
     a = ap.parse_args(argv)
     for area in a.areas:
         tris, (data, indptr, indices, rhs) = newton_matrix(area, a.steps)
@@ -98,6 +102,12 @@ def main(argv: list[str] | None = None) -> int:
         cur, prev = rows.values()
         print(f"  ratio current / previous: MFLOP {cur['mflop'] / prev['mflop']:.2f}, factor "
               f"{cur['factor'] / prev['factor']:.2f}, solve {cur['solve'] / prev['solve']:.2f}")
+        if a.threads > 1:
+            kw = dict(SETTINGS[next(iter(SETTINGS))], threads=a.threads)
+            t = measure(data, indptr, indices, rhs, a.repeat, **kw)
+            print(f"  current on {a.threads} threads: factor {t['factor'] * 1e3:7.2f} ms  solve {t['solve'] * 1e3:6.2f} ms"
+                  f"  ratio to one thread: factor {t['factor'] / cur['factor']:.2f}, solve {t['solve'] / cur['solve']:.2f}; "
+                  f"solution bit-for-bit equal: {np.array_equal(t['x'], cur['x'])}")
     return 0
 
 
