@@ -1,7 +1,6 @@
-"""IPC contact: log barrier, lagged smoothed Coulomb friction and CCD.
+"""IPC contact: log barrier, lagged smoothed Coulomb friction and CCD, via ipctk.
 
-Self-contact of the cloth via ipctk, and contact with the table (the plane z = 0, normal
-+z) in closed form (`table_contact.py`: the same potentials, evaluated per vertex).
+Self-contact of the cloth and contact with the table (the plane z = 0, normal +z).
 Mid-surfaces keep at least `xi` apart (ipctk's dmin) and the barrier acts within `dhat`
 beyond that. Energies follow the incremental potential scaled like 1/2 |x - x_hat|_M^2,
 so the barrier is kappa * B(x) and friction D(u) is built from that barrier's forces.
@@ -11,8 +10,6 @@ from __future__ import annotations
 import ipctk
 import numpy as np
 import scipy.sparse as sp
-
-from .table_contact import TableContact
 
 PSD = ipctk.PSDProjectionMethod.CLAMP
 
@@ -35,6 +32,7 @@ class ContactModel:
         tri = np.asarray(triangles, dtype=np.int32)
         edges = ipctk.edges(tri)
         self.mesh = ipctk.CollisionMesh(np.asfortranarray(rest, dtype=float), edges, tri)
+        self.mesh.planes = [ipctk.Hyperplane(np.array([0.0, 0.0, 1.0]), np.zeros(3))]
         self.xi = float(xi)
         self.dhat = float(dhat)
         # The barrier is singular at xi and reaches xi + dhat.
@@ -46,7 +44,6 @@ class ContactModel:
         self.friction_coefficient = float(friction)  # Coulomb mu, every contact
         self.dt = float(dt)
         self.friction_potential = ipctk.FrictionPotential(eps_v * dt)  # acts on displacements
-        self.table = TableContact(self.xi, self.dhat, self.friction_coefficient, eps_v * dt)
         self.narrow_phase = ipctk.AdditiveCCD()
         self.kappa = 0.0
         self.kappa_max = 0.0
@@ -114,7 +111,6 @@ class ContactModel:
         col = self.build(x)
         unit = ipctk.BarrierPotential(self.barrier_dhat, 1.0)
         grad_b = unit.gradient(col, self.mesh, np.asfortranarray(x)) if len(col) else np.zeros_like(grad_energy)
-        grad_b = grad_b + self.table.gradient(x, np.zeros_like(x), 1.0)
         kappa, kmax = ipctk.initial_barrier_stiffness(
             self.bbox_diagonal, unit.barrier, self.barrier_dhat, avg_mass, grad_energy, grad_b, dmin=self.barrier_dmin
         )
@@ -140,14 +136,13 @@ class ContactModel:
         self.tangential = ipctk.TangentialCollisions()
         if len(col) and self.friction_coefficient > 0:
             self.tangential.build(self.mesh, xf, col, self.barrier, self.friction_coefficient)
-        self.table.lag_friction(x, self.kappa)
 
     # -- potentials ---------------------------------------------------------------------
     def energy(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> float:
         e = self.barrier(col, self.mesh, np.asfortranarray(x)) if len(col) else 0.0
         if len(self.tangential):
             e += self.friction_potential(self.tangential, self.mesh, np.asfortranarray(u))
-        return float(e) + self.table.energy(x, u, self.kappa)
+        return float(e)
 
     def gradient(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         g = np.zeros(x.size)
@@ -155,11 +150,9 @@ class ContactModel:
             g += self.barrier.gradient(col, self.mesh, np.asfortranarray(x))
         if len(self.tangential):
             g += self.friction_potential.gradient(self.tangential, self.mesh, np.asfortranarray(u))
-        return g + self.table.gradient(x, u, self.kappa)
+        return g
 
     def hessian(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> sp.spmatrix | None:
-        """PSD Hessian of the self-contact potentials (None: no self-contact); the table's
-        per-vertex blocks come from `table_hessian`."""
         h = None
         if len(col):
             h = self.barrier.hessian(col, self.mesh, np.asfortranarray(x), self.psd)
@@ -168,21 +161,12 @@ class ContactModel:
             h = hf if h is None else h + hf
         return h
 
-    def table_hessian(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Vertex ids and upper entries (xx xy xz yy yz zz) of the table's 3x3 Hessian blocks."""
-        return self.table.hessian_blocks(x, u, self.kappa)
-
     # -- geometry queries -------------------------------------------------------------------
     def min_distance(self, col: ipctk.NormalCollisions, x: np.ndarray) -> float:
-        """Smallest distance (m) among active collisions, the table's included; inf when none."""
-        d = self.table.min_distance(x)
+        """Smallest distance (m) among active collisions; inf when none."""
         if not len(col):
-            return d
-        return min(d, float(np.sqrt(col.compute_minimum_distance(self.mesh, np.asfortranarray(x)))))
-
-    def count(self, col: ipctk.NormalCollisions, x: np.ndarray) -> int:
-        """Active barrier contacts: self-contact pairs and vertices near the table."""
-        return len(col) + self.table.count(x)
+            return np.inf
+        return float(np.sqrt(col.compute_minimum_distance(self.mesh, np.asfortranarray(x))))
 
     def separated(self, col: ipctk.NormalCollisions, x: np.ndarray) -> bool:
         """True if every active pair is more than xi apart.

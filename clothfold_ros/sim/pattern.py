@@ -92,10 +92,6 @@ class HessianPattern:
     def _rebuild(self, keys: np.ndarray) -> None:
         self._set_keys(keys)
         self.diag_slots = np.searchsorted(keys, np.arange(self.ndof, dtype=np.int64) * (self.ndof + 1))
-        nv = self.ndof // 3
-        r, c = np.triu_indices(3)
-        vkeys = (3 * np.arange(nv)[:, None] + r) * self.ndof + 3 * np.arange(nv)[:, None] + c
-        self.vertex_block_slots = np.searchsorted(keys, vkeys)  # (N, 6): xx xy xz yy yz zz of each vertex block
         self.block_slots = []
         for dofs in self._blocks:
             k, keep = _block_keys(dofs, self.ndof)
@@ -124,7 +120,6 @@ class HessianPattern:
 
     def _remap(self, old_to_new: np.ndarray) -> None:
         self.diag_slots = old_to_new[self.diag_slots]
-        self.vertex_block_slots = old_to_new[self.vertex_block_slots]
         for i, slots in enumerate(self.block_slots):
             self.block_slots[i] = np.where(slots >= 0, old_to_new[slots], -1)
         self.version += 1

@@ -256,7 +256,7 @@ class ClothSimulator:
             time=self.time,
             newton_iterations=iterations,
             line_search_halvings=halvings,
-            contacts=self.contact.count(col, x),
+            contacts=len(col),
             min_distance=self.contact.min_distance(col, x),
             kappa=self.contact.kappa,
             residual=residual,
@@ -338,15 +338,13 @@ class ClothSimulator:
             if pull is not None:
                 grad += np.repeat(pull[0], 3) * (x - pull[1]).ravel()
             grad += self.contact.gradient(col, x, u)
+            contact = None
             hc = self.contact.hessian(col, x, u)
             if it == 1:  # the pattern changes (one symbolic analysis) at most once per solve
                 self._pattern.begin_solve()
-            slots, vals = np.zeros(0, dtype=np.int64), np.zeros(0)
-            if hc is not None:  # (may grow the pattern: slots are taken after it)
+            if hc is not None:
                 slots, vals, _ = self._pattern.contact_slots(hc, grow=it == 1 or not cfg.defer_pattern_growth)
-            t_ids, t_blocks = self.contact.table_hessian(x, u)  # within each vertex's own block
-            contact = (np.concatenate([slots, self._pattern.vertex_block_slots[t_ids].ravel()]),
-                       np.concatenate([vals, t_blocks.ravel()]))
+                contact = (slots, vals)
             phases["contact_derivatives"] += time.perf_counter() - tic
             tic = time.perf_counter()
             data = self._pattern.assemble([hm, hb], h2, diag, contact)
