@@ -17,7 +17,7 @@ from rclpy.serialization import deserialize_message
 
 from clothfold_msgs.msg import FoldResult, FoldSpec
 from clothfold_ros.bag import BagReader
-from clothfold_ros.folding import FOLD_SEQUENCE
+from clothfold_ros.folding import FOLD_SEQUENCE, fold_spec
 from clothfold_ros.garment import make_shirt
 
 DOMAIN = 165
@@ -42,11 +42,11 @@ def test_demo_sequence_folds_all_five_through_the_nodes(tmp_path):
     assert [round(r.loss, 6) for r in results] == [round(v, 6) for v in printed.values()]
     assert [s.fold_name for s in specs] == list(FOLD_SEQUENCE)
     assert [len(s.start_poses) for s in specs] == [1, 1, 2, 2, 2]  # both grippers for sides and middle
-    # the middle fold grasps the hem inside the flat hem corners: planned from the folded cloth
+    # the middle fold is planned from the folded cloth, not from the flat shirt: its grips are
+    # not the flat hem's quarter points (where they land depends on how this crude mesh folded)
     g = make_shirt(1, max_area=AREA)
-    flat = g.keypoints(g.vertices)
-    half = abs(flat["bottom_right"][0] - flat["bottom_left"][0]) / 2
+    flat_grips = np.array([p.position[0] for p in fold_spec("middle", g.keypoints(g.vertices)).start_poses])
     grips = np.array([p.position.x for p in specs[-1].start_poses])
-    assert np.all(np.abs(grips) < half), grips
+    assert np.abs(grips - flat_grips).max() > 0.01, (grips, flat_grips)
     for k, fold in enumerate(FOLD_SEQUENCE):
         assert (tmp_path / f"seq-stage{k}-{fold}.png").stat().st_size > 10_000
