@@ -84,6 +84,14 @@ def describe(tag: str, r: dict) -> str:
             f"             phases: {split}")
 
 
+def print_vs_reference(tag: str, r: dict, ref: dict) -> None:
+    """Loss difference and per-vertex final-mesh distance of run r from the reference."""
+    if r["ok"] and ref["ok"]:
+        dist = np.linalg.norm(r["final"] - ref["final"], axis=1)
+        print(f"             {tag} - reference: loss {1000 * (r['loss'] - ref['loss']):+.2f} mm; final meshes "
+              f"{dist.mean() * 1000:.2f} mm mean, {dist.max() * 1000:.2f} mm max per vertex", flush=True)
+
+
 def worktree(commit: str, tmp: Path) -> Path:
     path = tmp / f"baseline-{commit}"
     subprocess.run(["git", "worktree", "add", "--detach", str(path), commit], cwd=ROOT, check=True,
@@ -155,17 +163,11 @@ def main() -> None:
                 if not (args.no_reference or args.baseline_only):
                     ref = run_worker(ROOT, area, *FAN_POINT, tol / TIGHTEN, 3000, tmp)
                     print(describe("reference", ref), flush=True)
-                    if fast["ok"] and ref["ok"]:  # noqa: SIM102
-                        dist = np.linalg.norm(fast["final"] - ref["final"], axis=1)
-                        print(f"             fast - reference: loss {1000 * (fast['loss'] - ref['loss']):+.2f} mm; final meshes "
-                              f"{dist.mean() * 1000:.2f} mm mean, {dist.max() * 1000:.2f} mm max per vertex")
+                    print_vs_reference("fast", fast, ref)
                     for other in args.tols:
                         r = run_worker(ROOT, area, *FAN_POINT, other, cfg.max_newton_iterations, tmp)
                         print(describe(f"tol {other:g}", r), flush=True)
-                        if r["ok"] and ref["ok"]:
-                            dist = np.linalg.norm(r["final"] - ref["final"], axis=1)
-                            print(f"             - reference: loss {1000 * (r['loss'] - ref['loss']):+.2f} mm; final "
-                                  f"meshes {dist.mean() * 1000:.2f} mm mean, {dist.max() * 1000:.2f} mm max per vertex")
+                        print_vs_reference(f"tol {other:g}", r, ref)
                 if base is not None:
                     now = run_worker(ROOT, area, *BASELINE_POINT, tol, cfg.max_newton_iterations, tmp)
                     old = run_worker(base, area, *BASELINE_POINT, tol, 80, tmp)
