@@ -1,6 +1,6 @@
 """The issue-3 fold check: the default shirt's left sleeve at a coarse resolution.
 
-(h, tilt) = (0.45, 51.4) must fold clearly better (loss at least 30 % lower, or the other run fails) than (0.1, 0), (1.0, 0) must fold, and
+(h, tilt) = (0.45, 51.4) must fold clearly better (loss at least 30 % lower, or the other run fails) than (0.1, 60), (1.0, 0) must fold, and
 the good loss must be below 2 cm, the method's threshold of a failed sleeve fold (with grasp springs
 instead of the rigid box it measured 10.2 mm, 8.9 mm rigid; coarse meshes are chaotic for
 this fold: at 3K the same point ended 2.6 mm and 10.8 mm with two solver variants that
@@ -32,7 +32,7 @@ def outcomes():
     spec = fold_spec("left_sleeve", garment.keypoints(flat_start(garment, cotton)))
     return {
         (h, tilt): run_fold(garment, spec, cotton, 0.5, h, tilt, duration=4.0)
-        for h, tilt in [(0.45, 51.4), (1.0, 0.0), (0.1, 0.0)]
+        for h, tilt in [(0.45, 51.4), (1.0, 0.0), (0.1, 60.0)]
     }
 
 
@@ -48,11 +48,14 @@ def test_good_fold_is_not_a_failed_fold(outcomes):
 
 
 def test_good_fold_beats_the_flat_path_and_the_steep_one_folds(outcomes):
-    """The flat, low path (0.1, 0) drags the sleeve instead of lifting it over: clearly worse.
-    The steep (1.0, 0) path also folds at this resolution (11.3 mm against 10.2 mm with grasp
-    springs; with the rigid box it was 13.6 mm against 8.9 mm), so it only has to complete."""
+    """The low, tilted path (0.1, 60) drags the sleeve instead of lifting it over: clearly
+    worse at every resolution measured (12K: 7.6 mm against 2.2 mm; 1.2K, tight reference
+    tolerance: 35 mm against 4-13 mm at the seven other points of the benchmark's fan
+    subset). The low untilted path (0.1, 0) is not: at 12K it folds to
+    2.8 mm, and at this resolution its rank against (0.45, 51.4) flips with solver details.
+    The steep (1.0, 0) path also folds at this resolution, so it only has to complete."""
     good = _loss(outcomes[(0.45, 51.4)])
-    flat = outcomes[(0.1, 0.0)]
+    flat = outcomes[(0.1, 60.0)]
     assert _loss(flat) > 1.3 * good, (flat.success, flat.reason, flat.loss)
     if not flat.success:
         assert flat.reason  # a failure always says why

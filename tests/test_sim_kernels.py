@@ -184,7 +184,7 @@ def test_spd_solvers_solve_on_the_persistent_pattern():
     rhs = rng.normal(size=n)
     for backend in ("pardiso", "superlu"):
         solver = spd_solver(backend)
-        solver.set_pattern(pat.indptr, pat.indices)
+        solver.set_pattern(pat.indptr, pat.indices, pat.block)
         for scale in (1.0, 2.0):  # refactor on the same pattern: analysed once
             data = pat.assemble([he], scale, np.ones(n))
             solver.factor(data)

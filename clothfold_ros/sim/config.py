@@ -22,19 +22,20 @@ class SimConfig:
     grasp_stiffness: float = 6e7  # N/m per kg of held cloth (1/s^2): spring from cloth to grip point
     grasp_slip: float = 2e-3  # m: held cloth farther than this from its grip point slips in the grip
     psd_projection: str = "clamp"  # "clamp" or "abs": negative membrane eigenvalues set to 0 or |.|
-    pattern_growth_rings: int = 1  # a new contact pair also adds its neighbours' pairs (rings) to the pattern
-    pattern_keep_solves: int = 5  # contact entries unused for this many steps are stale ...
-    pattern_prune_fraction: float = 0.25  # ... and dropped once they are this share of the contact entries
-    defer_pattern_growth: bool = True  # after a solve's first iteration, new pairs wait for the next solve
+    pattern_growth_rings: int = 0  # a new contact pair also adds its neighbours' pairs (rings) to the pattern
+    pattern_keep_solves: int = 1  # contact entries unused for this many steps are stale ...
+    pattern_prune_fraction: float = 0.0  # ... and dropped once they are this share of the contact entries
+    pattern_growth_iterations: int = 1  # new contact pairs join the pattern in a solve's first N iterations, later ones wait
     linear_solver: str = "auto"  # "pardiso", "superlu" or "auto" (PARDISO when MKL is there)
     xi: float | None = None  # m, minimum mid-surface separation (offset)
     dhat: float | None = None  # m, barrier activation distance beyond xi
     ccd_fraction: float = 0.99  # CCD keeps pairs this fraction of xi apart; the line search enforces xi
     eps_v: float = 1e-3  # m/s, smoothed static friction velocity
-    broad_phase_reuse: float = 1e-3  # m: contact candidates are reused while no vertex moved farther
+    broad_phase_reuse: float = 5e-4  # m: contact candidates are reused while no vertex moved farther
     table_margin: float = 0.05  # m the table extends beyond the cloth's rest footprint
     check_intersections: bool = True  # assert intersection-free after every step
     threads: int = 1  # ipctk threads (1 keeps results bit-for-bit deterministic)
+    ccd_threads: int = 1  # ipctk threads of the CCD step-size query (a minimum over pairs: reproducible with any count)
     solver_threads: int = 1  # PARDISO threads (bit-for-bit reproducible with any count: MKL's CNR mode)
 
     def __post_init__(self) -> None:
@@ -42,5 +43,9 @@ class SimConfig:
             raise ValueError(f"dt must be > 0 s, got {self.dt}")
         if not self.newton_tol > 0:
             raise ValueError(f"newton_tol must be > 0 m/s, got {self.newton_tol}")
+        if self.pattern_growth_iterations < 1:
+            raise ValueError("pattern_growth_iterations must be >= 1")
+        if self.threads < 1 or self.ccd_threads < 1 or self.solver_threads < 1:
+            raise ValueError("threads, ccd_threads and solver_threads must be >= 1")
         if self.max_newton_iterations < 1 or self.newton_window < 1:
             raise ValueError("max_newton_iterations and newton_window must be >= 1")

@@ -26,8 +26,10 @@ class ContactModel:
         friction: float,
         eps_v: float,
         dt: float,
-        reuse_radius: float = 1e-3,
+        reuse_radius: float = 5e-4,
         ccd_fraction: float = 0.99,
+        threads: int = 1,
+        ccd_threads: int = 1,
     ) -> None:
         tri = np.asarray(triangles, dtype=np.int32)
         edges = ipctk.edges(tri)
@@ -60,6 +62,9 @@ class ContactModel:
         self._cache_ref: np.ndarray | None = None
         self._cache: ipctk.Candidates | None = None
         self.broad_phases = 0  # broad-phase builds (statistics)
+        self.threads = int(threads)  # ipctk threads for everything but the CCD query
+        self.ccd_threads = int(ccd_threads)
+        ipctk.set_num_threads(self.threads)
 
     # -- collision sets --------------------------------------------------------------
     def build(self, x: np.ndarray, candidates: ipctk.Candidates | None = None) -> ipctk.NormalCollisions:
@@ -196,13 +201,21 @@ class ContactModel:
         default tight-inclusion CCD with a minimum distance returns uncertified tiny
         steps for nearly parallel edge pairs, which stalls Newton); the table plane is
         checked here in closed form (ipctk's step-size query does not look at planes).
+        The query runs on `ccd_threads`: each pair's time of impact does not depend on the
+        others, so their minimum is the same with any thread count.
         """
         if candidates is None:
             candidates = self.candidates(x0, x1)
         a, b = np.asfortranarray(x0), np.asfortranarray(x1)
-        self_ccd = candidates.compute_collision_free_stepsize(
-            self.mesh, a, b, min_distance=self.ccd_min_distance, narrow_phase_ccd=self.narrow_phase
-        )
+        if self.ccd_threads != self.threads:
+            ipctk.set_num_threads(self.ccd_threads)
+        try:
+            self_ccd = candidates.compute_collision_free_stepsize(
+                self.mesh, a, b, min_distance=self.ccd_min_distance, narrow_phase_ccd=self.narrow_phase
+            )
+        finally:
+            if self.ccd_threads != self.threads:
+                ipctk.set_num_threads(self.threads)
         return min(float(self_ccd), self.table_step(x0[:, 2], x1[:, 2]))
 
     def table_step(self, z0: np.ndarray, z1: np.ndarray) -> float:

@@ -1,22 +1,31 @@
-"""Persistent upper-triangular CSR pattern of the Newton matrix, grown only when needed.
+"""Persistent block pattern of the Newton matrix (3x3 vertex blocks), grown only when needed.
+
+The Newton matrix is stored as the upper block triangle of a block sparse row (BSR)
+matrix with one dense 3x3 block per coupled vertex pair (a, b), a <= b; diagonal blocks
+are stored whole. Its values are one flat array, block after block, each block row-major
+(value 9 s + 3 i + j is row 3 a + i, column 3 b + j of block slot s). The sparse solver
+factorizes the block graph (one node per vertex), which analyses about six times faster
+and factorizes faster than the same matrix given entry by entry.
 
 The pattern holds the elastic blocks (triangles, hinges), the diagonal and the contact
-entries seen recently; a contact pair that separates keeps its slot (with zeros), so
-the linear solver re-runs its symbolic analysis only when a new pair appears. Entries
-that stayed unused for `keep_solves` Newton solves are dropped once they make up a
-`prune_fraction` of the contact entries: cloth sliding over cloth meets new pairs all the
+blocks seen recently; a contact pair that separates keeps its slot (with zeros), so the
+linear solver re-runs its symbolic analysis only when a new pair appears. Blocks that
+stayed unused for `keep_solves` Newton solves are dropped once they make up a
+`prune_fraction` of the contact blocks: cloth sliding over cloth meets new pairs all the
 time, and a pattern that only grows fills the factorization with dead couplings. A new
-pair (a, b) also brings in the pairs of the mesh neighbours of a and b (`growth_rings`
-rings around each): contact fronts advance to neighbouring vertices, and each analysis
-costs more than the factorizations it saves. Element
-Hessians go straight into the CSR value array through precomputed slot maps (one
-serial pass, so sums happen in a fixed order: assembly is bit-for-bit reproducible).
+pair (a, b) can also bring in the pairs of the mesh neighbours of a and b (`growth_rings`
+rings around each). Element Hessians are summed into the fixed base pattern (diagonal
+and element blocks) through precomputed slot maps (one serial pass, so sums happen in a
+fixed order: assembly is bit-for-bit reproducible); growing or pruning contact blocks
+only moves the base blocks' positions.
 """
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
+
+BLOCK = 3  # DOFs per vertex: one block row per vertex
 
 
 def element_dofs(elements: np.ndarray) -> np.ndarray:
@@ -30,12 +39,12 @@ def scatter_gradient(ndof: int, dofs: np.ndarray, grads: np.ndarray) -> np.ndarr
     return np.bincount(dofs.ravel(), weights=grads.ravel(), minlength=ndof)
 
 
-def _block_keys(dofs: np.ndarray, ndof: int) -> tuple[np.ndarray, np.ndarray]:
-    """Keys r * ndof + c of the upper entries of each element block, and the mask of kept entries."""
-    r = np.repeat(dofs, dofs.shape[1], axis=1)
-    c = np.tile(dofs, (1, dofs.shape[1]))
-    keep = r <= c
-    return (r * ndof + c), keep
+def _entry_keys(rows: np.ndarray, cols: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For DOF entries (rows, cols): block keys a * nv + b, in-block offsets 3 i + j, and the
+    mask of the entries stored (upper block triangle; diagonal blocks whole)."""
+    va, vb = rows // BLOCK, cols // BLOCK
+    keep = va <= vb
+    return va * nv + vb, BLOCK * (rows % BLOCK) + cols % BLOCK, keep
 
 
 @nb.njit(cache=True)
@@ -57,18 +66,23 @@ def _scatter(data, slots, values):
 
 
 class HessianPattern:
-    """Upper CSR pattern over `ndof` DOFs for element blocks, the diagonal and contacts."""
+    """Upper block pattern over `ndof` DOFs (3 per vertex) for element blocks, the diagonal
+    and contacts. `nnz` counts stored 3x3 blocks; value arrays have 9 nnz entries."""
+
+    block = BLOCK
 
     def __init__(self, ndof: int, blocks: list[np.ndarray], triangles: np.ndarray | None = None,
-                 growth_rings: int = 1, keep_solves: int = 5, prune_fraction: float = 0.25) -> None:
+                 growth_rings: int = 0, keep_solves: int = 1, prune_fraction: float = 0.0) -> None:
+        if ndof % BLOCK:
+            raise ValueError(f"ndof must be a multiple of {BLOCK}, got {ndof}")
         self.ndof = ndof
+        self.nv = nv = ndof // BLOCK
         self.keep_solves = keep_solves
         self.prune_fraction = prune_fraction
         self.solves = 0  # begin_solve() calls so far
-        self.pending = np.zeros(0, dtype=np.int64)  # contact entries deferred by contact_slots(grow=False)
+        self.pending = np.zeros(0, dtype=np.int64)  # contact blocks deferred by contact_slots(grow=False)
         self._rings = None
         if triangles is not None and growth_rings > 0:
-            nv = ndof // 3
             t = np.asarray(triangles, dtype=np.int64)
             r = np.concatenate([t[:, [0, 1, 2, 0, 1, 2]].ravel(), np.arange(nv)])
             c = np.concatenate([t[:, [1, 2, 0, 2, 0, 1]].ravel(), np.arange(nv)])
@@ -79,37 +93,47 @@ class HessianPattern:
                 reach = reach @ ring
             reach.data[:] = 1.0
             self._rings = reach.tocsr()
-        self._blocks = [np.asarray(b, dtype=np.int64) for b in blocks]
-        keys = [np.arange(ndof, dtype=np.int64) * (ndof + 1)]  # diagonal
-        for dofs in self._blocks:
-            k, keep = _block_keys(dofs, ndof)
-            keys.append(k[keep])
-        self._rebuild(np.unique(np.concatenate(keys)))
-        self.base_nnz = self.nnz
-        self.is_base = np.ones(self.nnz, dtype=bool)  # element or diagonal entry (never pruned)
-        self.last_used = np.zeros(self.nnz, dtype=np.int64)  # solve in which a contact entry was last used
-
-    def _rebuild(self, keys: np.ndarray) -> None:
-        self._set_keys(keys)
-        self.diag_slots = np.searchsorted(keys, np.arange(self.ndof, dtype=np.int64) * (self.ndof + 1))
+        # The base pattern (diagonal and element blocks) never changes: element Hessians
+        # are summed into a base value array through fixed slot maps, and only the
+        # positions of the base blocks in the full pattern (`base_pos`) move when
+        # contact blocks come and go.
+        diag_keys = np.arange(nv, dtype=np.int64) * (nv + 1)
+        entries = []
+        for b in blocks:
+            dofs = np.asarray(b, dtype=np.int64)
+            k = dofs.shape[1]
+            entries.append(_entry_keys(np.repeat(dofs, k, axis=1), np.tile(dofs, (1, k)), nv))
+        base_keys = np.unique(np.concatenate([diag_keys] + [key[keep] for key, _, keep in entries]))
         self.block_slots = []
-        for dofs in self._blocks:
-            k, keep = _block_keys(dofs, self.ndof)
-            slots = np.searchsorted(keys, k).astype(np.int64)
-            slots[~keep] = -1  # lower entries: their mirror is the upper one
+        for key, offset, keep in entries:
+            slots = BLOCK * BLOCK * np.searchsorted(base_keys, key) + offset
+            slots[~keep] = -1  # lower blocks: their mirror is stored
             self.block_slots.append(slots)
+        dof = np.arange(ndof)
+        self._base_diag = BLOCK * BLOCK * np.searchsorted(base_keys, diag_keys[dof // BLOCK]) + (BLOCK + 1) * (dof % BLOCK)
+        self.base_nnz = len(base_keys)
+        self._set_keys(base_keys)
+        self.base_pos = np.arange(self.base_nnz)  # slot of each base block in the full pattern
+        self.diag_slots = self._base_diag.copy()  # value index of each DOF's diagonal entry
+        self.is_base = np.ones(self.nnz, dtype=bool)  # element or diagonal block (never pruned)
+        self.last_used = np.zeros(self.nnz, dtype=np.int64)  # solve in which a contact block was last used
         self.version = 0
 
     def _set_keys(self, keys: np.ndarray) -> None:
-        """The sorted keys r * ndof + c and the CSR arrays (rows, indices, indptr) they define."""
+        """The sorted block keys a * nv + b and the BSR arrays (indptr, indices) they define,
+        with the DOF row and column of every value (dof_rows, dof_cols)."""
         self.keys = keys
         self.nnz = len(keys)
-        self.rows = (keys // self.ndof).astype(np.int32)
-        self.indices = (keys % self.ndof).astype(np.int32)
-        self.indptr = np.searchsorted(self.rows, np.arange(self.ndof + 1)).astype(np.int32)
+        a = keys // self.nv
+        self.indices = (keys % self.nv).astype(np.int32)
+        self.indptr = np.searchsorted(a, np.arange(self.nv + 1)).astype(np.int32)
+        i = np.arange(BLOCK)
+        self.dof_rows = (BLOCK * a[:, None, None] + i[None, :, None] + 0 * i[None, None, :]).ravel()
+        self.dof_cols = (BLOCK * self.indices.astype(np.int64)[:, None, None] + 0 * i[None, :, None]
+                         + i[None, None, :]).ravel()
 
     def _insert(self, new_keys: np.ndarray) -> None:
-        """Add sorted keys absent from the pattern; existing slots shift past the inserted ones."""
+        """Add sorted block keys absent from the pattern; existing slots shift past the inserted ones."""
         shift = np.searchsorted(new_keys, self.keys)  # inserted keys below each old key
         old_to_new = np.arange(self.nnz) + shift
         where = np.searchsorted(self.keys, new_keys)
@@ -119,13 +143,13 @@ class HessianPattern:
         self._remap(old_to_new)
 
     def _remap(self, old_to_new: np.ndarray) -> None:
-        self.diag_slots = old_to_new[self.diag_slots]
-        for i, slots in enumerate(self.block_slots):
-            self.block_slots[i] = np.where(slots >= 0, old_to_new[slots], -1)
+        self.base_pos = old_to_new[self.base_pos]
+        block = self._base_diag // (BLOCK * BLOCK)
+        self.diag_slots = BLOCK * BLOCK * self.base_pos[block] + self._base_diag % (BLOCK * BLOCK)
         self.version += 1
 
     def _prune(self) -> bool:
-        """Drop contact entries unused for more than keep_solves solves, if they are many."""
+        """Drop contact blocks unused for more than keep_solves solves, if they are many."""
         stale = ~self.is_base & (self.last_used < self.solves - self.keep_solves)
         n_stale = int(stale.sum())
         if n_stale == 0 or n_stale < self.prune_fraction * (self.nnz - self.base_nnz):
@@ -138,53 +162,53 @@ class HessianPattern:
         return True
 
     def begin_solve(self) -> bool:
-        """Start a Newton solve: prune stale contact entries, add the deferred ones; True if
+        """Start a Newton solve: prune stale contact blocks, add the deferred ones; True if
         the pattern changed (the solver then re-runs its analysis)."""
         self.solves += 1
         pruned = self._prune()
         return self.grow_pending() or pruned
 
-    def contact_slots(self, hessian: sp.spmatrix, grow: bool = True) -> tuple[np.ndarray, np.ndarray, bool]:
-        """Slots and values of the upper entries of a symmetric sparse contact Hessian.
+    def _find(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Block slots of keys and the mask of keys the pattern lacks."""
+        slots = np.searchsorted(self.keys, keys)
+        missing = self.keys[np.minimum(slots, self.nnz - 1)] != keys
+        return slots, missing
 
-        grow: entries the pattern lacks are added (the third value says it grew). Otherwise
+    def contact_slots(self, hessian: sp.spmatrix, grow: bool = True) -> tuple[np.ndarray, np.ndarray, bool]:
+        """Value slots and values of the stored entries of a symmetric sparse contact Hessian.
+
+        grow: blocks the pattern lacks are added (the third value says it grew). Otherwise
         the pattern stays: each missing off-diagonal vertex block B (between vertices i, j)
         is dropped and ||B||_F is added to the diagonal of both vertices instead. That
         matrix is the Hessian plus a PSD term (the eigenvalues of [[0, B], [B^T, 0]] are
         +-sigma(B) <= ||B||_F), so it stays SPD and Newton keeps a descent direction; the
-        missing entries wait in `pending` until `grow_pending`.
+        missing blocks wait in `pending` until `grow_pending`.
         """
         coo = hessian.tocoo()
-        upper = coo.row <= coo.col
-        keys = coo.row[upper].astype(np.int64) * self.ndof + coo.col[upper]
-        vals = coo.data[upper]
-        slots = np.searchsorted(self.keys, keys)
-        slots_c = np.minimum(slots, self.nnz - 1)
-        missing = self.keys[slots_c] != keys
+        keys, offset, keep = _entry_keys(coo.row.astype(np.int64), coo.col.astype(np.int64), self.nv)
+        keys, offset, vals = keys[keep], offset[keep], coo.data[keep]
+        slots, missing = self._find(keys)
         if not missing.any():
             self.last_used[slots] = self.solves
-            return slots, vals, False
+            return BLOCK * BLOCK * slots + offset, vals, False
         if grow:
             self._insert(self._with_neighbours(np.unique(keys[missing])))
             slots = np.searchsorted(self.keys, keys)
             self.last_used[slots] = self.solves
-            return slots, vals, True
+            return BLOCK * BLOCK * slots + offset, vals, True
         self.last_used[slots[~missing]] = self.solves
         miss_keys, miss_vals = keys[missing], vals[missing]
-        self.pending = np.union1d(self.pending, miss_keys)
-        rows, cols = miss_keys // self.ndof, miss_keys % self.ndof
-        pair = (rows // 3) * (self.ndof // 3) + cols // 3
-        uniq, inv = np.unique(pair, return_inverse=True)
+        uniq, inv = np.unique(miss_keys, return_inverse=True)
+        self.pending = np.union1d(self.pending, uniq)
         norm = np.sqrt(np.bincount(inv, weights=miss_vals**2))
-        nv = self.ndof // 3
-        bump = np.bincount(np.concatenate([uniq // nv, uniq % nv]), weights=np.concatenate([norm, norm]),
-                           minlength=nv)
-        keep = ~missing
-        diag = np.repeat(bump, 3)
-        return (np.concatenate([slots[keep], self.diag_slots]), np.concatenate([vals[keep], diag]), False)
+        bump = np.bincount(np.concatenate([uniq // self.nv, uniq % self.nv]), weights=np.concatenate([norm, norm]),
+                           minlength=self.nv)
+        found = ~missing
+        return (np.concatenate([BLOCK * BLOCK * slots[found] + offset[found], self.diag_slots]),
+                np.concatenate([vals[found], np.repeat(bump, BLOCK)]), False)
 
     def grow_pending(self) -> bool:
-        """Add the entries deferred by contact_slots(grow=False); True if the pattern grew."""
+        """Add the blocks deferred by contact_slots(grow=False); True if the pattern grew."""
         if not len(self.pending):
             return False
         new = self._with_neighbours(self.pending)
@@ -195,38 +219,38 @@ class HessianPattern:
         return True
 
     def _with_neighbours(self, new: np.ndarray) -> np.ndarray:
-        """Keys absent from the pattern among `new` and, with growth rings, their neighbours' pairs."""
+        """Block keys absent from the pattern among `new` and, with growth rings, their neighbours' pairs."""
         if self._rings is not None:
             new = np.union1d(new, self._neighbour_keys(new))
-        present = self.keys[np.minimum(np.searchsorted(self.keys, new), self.nnz - 1)] == new
-        return new[~present]
+        return new[self._find(new)[1]]
 
     def _neighbour_keys(self, keys: np.ndarray) -> np.ndarray:
-        """Upper DOF keys of every vertex pair (a', b'), a' near a, b' near b, for the pairs in keys."""
-        nv = self.ndof // 3
-        va, vb = (keys // self.ndof) // 3, (keys % self.ndof) // 3
-        pairs = sp.csr_matrix((np.ones(len(va)), (va, vb)), shape=(nv, nv))
+        """Upper block keys of every vertex pair (a', b'), a' near a, b' near b, for the pairs in keys."""
+        nv = self.nv
+        pairs = sp.csr_matrix((np.ones(len(keys)), (keys // nv, keys % nv)), shape=(nv, nv))
         grown = (self._rings @ pairs @ self._rings.T).tocoo()
         a = np.minimum(grown.row, grown.col).astype(np.int64)
         b = np.maximum(grown.row, grown.col).astype(np.int64)
-        r = (3 * a[:, None] + np.arange(3))[:, :, None]
-        c = (3 * b[:, None] + np.arange(3))[:, None, :]
-        r, c = np.broadcast_arrays(r, c)
-        r, c = r.ravel(), c.ravel()
-        upper = r <= c
-        return np.unique(r[upper] * self.ndof + c[upper])
+        return np.unique(a * nv + b)
 
     def assemble(self, element_hessians: list[np.ndarray], scale: float, diagonal: np.ndarray,
                  contact: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-        """CSR values of scale * sum(element Hessians) + diag(diagonal) (+ contact entries)."""
-        data = np.zeros(self.nnz)
+        """Block values of scale * sum(element Hessians) + diag(diagonal) (+ contact entries)."""
+        base = np.zeros(BLOCK * BLOCK * self.base_nnz)
         for slots, blocks in zip(self.block_slots, element_hessians):
-            _scatter_blocks(data, slots, blocks, scale)
-        data[self.diag_slots] += diagonal
+            _scatter_blocks(base, slots, blocks, scale)
+        base[self._base_diag] += diagonal
+        if self.nnz == self.base_nnz:
+            data = base
+        else:
+            data = np.zeros((self.nnz, BLOCK * BLOCK))
+            data[self.base_pos] = base.reshape(-1, BLOCK * BLOCK)
+            data = data.ravel()
         if contact is not None:
             _scatter(data, contact[0], contact[1])
         return data
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
-        """The upper triangle as a SciPy CSR matrix (for tests and inspection)."""
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.ndof, self.ndof))
+        """The upper triangle entry by entry as a SciPy CSR matrix (for tests and inspection)."""
+        bsr = sp.bsr_matrix((data.reshape(-1, BLOCK, BLOCK), self.indices, self.indptr), shape=(self.ndof, self.ndof))
+        return sp.triu(bsr.tocsr(), format="csr")

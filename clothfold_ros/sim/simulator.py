@@ -111,7 +111,7 @@ class ClothSimulator:
         xi = material.thickness if cfg.xi is None else cfg.xi
         dhat = material.thickness if cfg.dhat is None else cfg.dhat
         self.contact = ContactModel(rest, tri, xi, dhat, friction, cfg.eps_v, cfg.dt, cfg.broad_phase_reuse,
-                                    cfg.ccd_fraction)
+                                    cfg.ccd_fraction, cfg.threads, cfg.ccd_threads)
         self.grasps: dict[int, Grasp] = {}
         import ipctk
 
@@ -119,7 +119,6 @@ class ClothSimulator:
         self._project = membrane.PROJECT_ABS if cfg.psd_projection == "abs" else membrane.PROJECT_CLAMP
         self.contact.psd = ipctk.PSDProjectionMethod.ABS if cfg.psd_projection == "abs" else ipctk.PSDProjectionMethod.CLAMP
 
-        ipctk.set_num_threads(cfg.threads)
         if self.contact.intersects(self.x):
             raise ValueError("initial cloth state intersects itself or the table")
 
@@ -289,14 +288,14 @@ class ClothSimulator:
         """
         pat = self._pattern
         if self._pattern_version != (id(pat), pat.version):
-            self._solver.set_pattern(pat.indptr, pat.indices)
+            self._solver.set_pattern(pat.indptr, pat.indices, pat.block)
             self._pattern_version = (id(pat), pat.version)
         d = data[pat.diag_slots]
         if not np.all(d > 0) or not np.all(np.isfinite(data)):
             raise SimulationFailure(f"{when}: Newton matrix has a non-positive or non-finite diagonal")
         scale = 1.0 / np.sqrt(d)
         try:
-            self._solver.factor(data * scale[pat.rows] * scale[pat.indices])
+            self._solver.factor(data * scale[pat.dof_rows] * scale[pat.dof_cols])
             p = scale * self._solver.solve(-scale * grad)
         except np.linalg.LinAlgError as err:
             raise SimulationFailure(f"{when}: linear solve failed: {err}") from err
@@ -340,10 +339,10 @@ class ClothSimulator:
             grad += self.contact.gradient(col, x, u)
             contact = None
             hc = self.contact.hessian(col, x, u)
-            if it == 1:  # the pattern changes (one symbolic analysis) at most once per solve
+            if it == 1:  # prune stale contact entries, add the ones deferred in the last solve
                 self._pattern.begin_solve()
             if hc is not None:
-                slots, vals, _ = self._pattern.contact_slots(hc, grow=it == 1 or not cfg.defer_pattern_growth)
+                slots, vals, _ = self._pattern.contact_slots(hc, grow=it <= cfg.pattern_growth_iterations)
                 contact = (slots, vals)
             phases["contact_derivatives"] += time.perf_counter() - tic
             tic = time.perf_counter()
