@@ -9,12 +9,14 @@ For each resolution (max triangle area) it runs, each in its own process:
 It prints wall time, Newton iterations per step, the phase split, the loss of fast and
 reference and the mean / max per-vertex distance between their final meshes, and the
 ratios to the baseline and to the targets (20 s at ~3K triangles, 90 s at ~12K).
-`--fan N` also runs N fan points (spread over h and tilt) fast and tight at
+`--threads N` also runs the fast fold on N threads (PARDISO, CCD, numba kernels; the
+result must be bit-for-bit the one-thread result) and measures the targets on it, which
+are for 2 cores; every other run uses one thread. `--fan N` also runs N fan points (spread over h and tilt) fast and tight at
 `--fan-area` and prints the Spearman rank correlation of their losses. `--tols` also runs
 the fold at other Newton tolerances and compares each with the reference (the stopping
 rule's calibration).
 
-    python bench/bench_sim.py [--areas 2e-4 5e-5] [--baseline a11945f | --no-baseline]
+    python bench/bench_sim.py [--areas 2e-4 5e-5] [--threads 2] [--baseline a11945f | --no-baseline]
                               [--no-reference] [--tols 3e-3 1e-2] [--fan 8 --fan-area 5e-4 [--fan-only]]
 """
 from __future__ import annotations
@@ -49,7 +51,8 @@ a = json.loads(sys.argv[1])
 cot = material("cotton")
 g = make_shirt(1, max_area=a["area"])
 spec = fold_spec("left_sleeve", g.keypoints(flat_start(g, cot)))
-cfg = SimConfig(newton_tol=a["tol"], max_newton_iterations=a["max_it"])
+threads = dict(solver_threads=a["threads"], ccd_threads=a["threads"]) if a["threads"] > 1 else {}
+cfg = SimConfig(newton_tol=a["tol"], max_newton_iterations=a["max_it"], **threads)
 small = make_shirt(1, max_area=1e-2)  # compile the numba kernels before the clock starts
 run_fold(small, fold_spec("left_sleeve", small.keypoints(flat_start(small, cot))), cot, 0.5, a["h"], a["tilt"], 0.12, config=cfg)
 t0 = time.perf_counter()
@@ -62,10 +65,12 @@ print("RESULT " + json.dumps(dict(ok=out.success, reason=out.reason, loss=out.lo
 """
 
 
-def run_worker(pythonpath: Path, area: float, h: float, tilt: float, tol: float, max_it: int, tmp: Path) -> dict:
+def run_worker(pythonpath: Path, area: float, h: float, tilt: float, tol: float, max_it: int, tmp: Path,
+               threads: int = 1) -> dict:
     final = tmp / f"final-{os.getpid()}-{time.monotonic_ns()}.npy"
-    env = dict(os.environ, PYTHONPATH=f"{pythonpath}:{os.environ.get('PYTHONPATH', '')}")
-    args = json.dumps(dict(area=area, h=h, tilt=tilt, tol=tol, max_it=max_it, final=str(final)))
+    env = dict(os.environ, PYTHONPATH=f"{pythonpath}:{os.environ.get('PYTHONPATH', '')}",
+               NUMBA_NUM_THREADS=str(threads), MKL_NUM_THREADS=str(threads))
+    args = json.dumps(dict(area=area, h=h, tilt=tilt, tol=tol, max_it=max_it, final=str(final), threads=threads))
     proc = subprocess.run([sys.executable, "-c", WORKER, args], cwd=pythonpath, env=env, capture_output=True, text=True)
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")), None)
     if line is None:
@@ -134,6 +139,7 @@ def main() -> None:
     ap.add_argument("--areas", type=float, nargs="+", default=[2e-4, 5e-5], help="max triangle areas (m^2)")
     ap.add_argument("--baseline", default="a11945f", help="earlier commit to compare against")
     ap.add_argument("--no-baseline", action="store_true")
+    ap.add_argument("--threads", type=int, default=1, help="also run the fast fold on this many threads")
     ap.add_argument("--no-reference", action="store_true")
     ap.add_argument("--baseline-only", action="store_true", help="only the comparison with the earlier solver")
     ap.add_argument("--tols", type=float, nargs="*", default=[], help="other Newton tolerances to compare (m/s)")
@@ -158,8 +164,16 @@ def main() -> None:
                     fast = run_worker(ROOT, area, *FAN_POINT, tol, cfg.max_newton_iterations, tmp)
                     print(f"  {fast['triangles']} triangles, fan point h {FAN_POINT[0]}, tilt {FAN_POINT[1]} deg")
                     print(describe("fast", fast), flush=True)
+                    timed = fast
+                    if args.threads > 1:
+                        timed = run_worker(ROOT, area, *FAN_POINT, tol, cfg.max_newton_iterations, tmp, args.threads)
+                        print(describe(f"fast, {args.threads} threads", timed))
+                        print(f"             final mesh bit-for-bit the one-thread mesh: "
+                              f"{np.array_equal(timed['final'], fast['final'])}; speed-up "
+                              f"{fast['wall'] / timed['wall']:.2f}x", flush=True)
                     if area in TARGETS:
-                        print(f"             ratio to target ({TARGETS[area]:.0f} s): {fast['wall'] / TARGETS[area]:.2f}")
+                        print(f"             ratio to target ({TARGETS[area]:.0f} s on 2 cores): "
+                              f"{timed['wall'] / TARGETS[area]:.2f}")
                 if not (args.no_reference or args.baseline_only):
                     ref = run_worker(ROOT, area, *FAN_POINT, tol / TIGHTEN, 3000, tmp)
                     print(describe("reference", ref), flush=True)
