@@ -1,6 +1,6 @@
 """Linear-solver benchmark: one Newton matrix of the default fold, factorized and solved by
-PARDISO with the simulator's settings and with the previous ones (METIS ordering, two
-iterative-refinement steps), in the same run.
+PARDISO with the simulator's settings (3x3 vertex blocks, minimum degree) and with the
+previous ones (the same matrix entry by entry, CSR), in the same run.
 
     python bench/bench_linear.py [--areas 2e-4 5e-5] [--steps 3] [--repeat 10] [--threads 2]
 
@@ -8,9 +8,9 @@ iterative-refinement steps), in the same run.
 solution is bit-for-bit the one-thread solution.
 
 For each mesh it steps the default left-sleeve fold `--steps` steps, takes the last Newton
-matrix (diagonally scaled, as the simulator factorizes it), and prints per setting the factor's
-nonzeros and MFLOP (PARDISO's own report), the median factorization and solve times over
-`--repeat` repetitions, the relative residual, and the ratios current / previous.
+matrix (diagonally scaled, as the simulator factorizes it), and prints per setting the
+median analysis, factorization and solve times over `--repeat` repetitions, the relative
+residual, and the ratios current / previous.
 """
 from __future__ import annotations
 
@@ -35,18 +35,21 @@ from clothfold_ros.sim.runner import flat_start  # noqa: E402
 from clothfold_ros.sim.simulator import ClothSimulator  # noqa: E402
 from clothfold_ros.trajectory import FoldTrajectory  # noqa: E402
 
-SETTINGS = {"current (minimum degree, no refinement)": dict(ordering="minimum_degree", refinement_steps=0),
-            "previous (METIS, 2 refinement steps)": dict(ordering="metis", refinement_steps=2)}
+SETTINGS = {"current (3x3 blocks, minimum degree)": True, "previous (entries, CSR, minimum degree)": False}
 
 
 class Capture(ClothSimulator):
-    """Keeps the last scaled Newton matrix it factorized (values, pattern) and its right-hand side."""
+    """Keeps the last scaled Newton matrix it factorized (as blocks and entry by entry) and
+    its right-hand side."""
 
     def _direction(self, data, grad, when):
         pat = self._pattern
         scale = 1.0 / np.sqrt(data[pat.diag_slots])
-        self.captured = (data * scale[pat.rows] * scale[pat.indices], pat.indptr.copy(), pat.indices.copy(),
-                         -scale * grad)
+        scaled = pat.scaled(data, scale)
+        upper = pat.matrix(scaled)
+        upper.sort_indices()
+        self.captured = dict(blocks=(scaled, pat.indptr.copy(), pat.indices.copy(), pat.block),
+                             entries=(upper.data, upper.indptr, upper.indices, 1), rhs=-scale * grad)
         return super()._direction(data, grad, when)
 
 
@@ -64,24 +67,25 @@ def newton_matrix(area: float, steps: int):
     return len(g.triangles), sim.captured
 
 
-def measure(data, indptr, indices, rhs, repeat: int, **kwargs) -> dict:
-    s = PardisoSPD(**kwargs)
-    s.set_pattern(indptr, indices)
-    s.factor(data)  # analysis + first factorization
-    t_f, t_s = [], []
+def measure(matrix, full: sp.csr_matrix, rhs, repeat: int, threads: int = 1) -> dict:
+    data, indptr, indices, block = matrix
+    t_a, t_f, t_s = [], [], []
     for _ in range(repeat):
+        s = PardisoSPD(threads=threads)
+        s.set_pattern(indptr, indices, block)
+        tic = time.perf_counter()
+        s.factor(data)  # analysis + first factorization
+        t_a.append(time.perf_counter() - tic)
         tic = time.perf_counter()
         s.factor(data)
         t_f.append(time.perf_counter() - tic)
         tic = time.perf_counter()
         x = s.solve(rhs)
         t_s.append(time.perf_counter() - tic)
-    n = len(indptr) - 1
-    upper = sp.csr_matrix((data, indices, indptr), shape=(n, n))
-    full = upper + sp.triu(upper, k=1).T
     res = float(np.linalg.norm(full @ x - rhs) / np.linalg.norm(rhs))
-    return dict(nnz=s.factor_nonzeros, mflop=s.factor_mflop, factor=float(np.median(t_f)),
-                solve=float(np.median(t_s)), residual=res, x=x)
+    factor = float(np.median(t_f))
+    return dict(analysis=float(np.median(t_a)) - factor, factor=factor, solve=float(np.median(t_s)),
+                residual=res, x=x)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -92,19 +96,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1, help="also time the current settings on this many threads")
     a = ap.parse_args(argv)
     for area in a.areas:
-        tris, (data, indptr, indices, rhs) = newton_matrix(area, a.steps)
-        print(f"max area {area:g} m^2: {tris} triangles, {len(indptr) - 1} unknowns, {len(data)} upper nonzeros "
-              f"(Newton matrix of step {a.steps})")
-        rows = {name: measure(data, indptr, indices, rhs, a.repeat, **kw) for name, kw in SETTINGS.items()}
+        tris, cap = newton_matrix(area, a.steps)
+        rhs = cap["rhs"]
+        upper_data, upper_indptr, upper_indices, _ = cap["entries"]
+        n = len(rhs)
+        upper = sp.csr_matrix((upper_data, upper_indices, upper_indptr), shape=(n, n))
+        full = (upper + sp.triu(upper, k=1).T).tocsr()
+        print(f"max area {area:g} m^2: {tris} triangles, {n} unknowns, {upper.nnz} upper nonzeros in "
+              f"{len(cap['blocks'][2])} upper 3x3 blocks (Newton matrix of step {a.steps})")
+        rows = {name: measure(cap["blocks" if blocks else "entries"], full, rhs, a.repeat)
+                for name, blocks in SETTINGS.items()}
         for name, r in rows.items():
-            print(f"  {name:42s} factor nnz {r['nnz']:>9d}  {r['mflop']:>5d} MFLOP  factor {r['factor'] * 1e3:7.2f} ms"
+            print(f"  {name:42s} analysis {r['analysis'] * 1e3:7.2f} ms  factor {r['factor'] * 1e3:7.2f} ms"
                   f"  solve {r['solve'] * 1e3:6.2f} ms  residual {r['residual']:.1e}")
         cur, prev = rows.values()
-        print(f"  ratio current / previous: MFLOP {cur['mflop'] / prev['mflop']:.2f}, factor "
+        print(f"  ratio current / previous: analysis {cur['analysis'] / prev['analysis']:.2f}, factor "
               f"{cur['factor'] / prev['factor']:.2f}, solve {cur['solve'] / prev['solve']:.2f}")
         if a.threads > 1:
-            kw = dict(SETTINGS[next(iter(SETTINGS))], threads=a.threads)
-            t = measure(data, indptr, indices, rhs, a.repeat, **kw)
+            t = measure(cap["blocks"], full, rhs, a.repeat, a.threads)
             print(f"  current on {a.threads} threads: factor {t['factor'] * 1e3:7.2f} ms  solve {t['solve'] * 1e3:6.2f} ms"
                   f"  ratio to one thread: factor {t['factor'] / cur['factor']:.2f}, solve {t['solve'] / cur['solve']:.2f}; "
                   f"solution bit-for-bit equal: {np.array_equal(t['x'], cur['x'])}")

@@ -110,7 +110,7 @@ def spearman(a: np.ndarray, b: np.ndarray) -> float:
     return float(spearmanr(a, b).statistic)
 
 
-def fan_check(n: int, area: float, tol: float, tmp: Path) -> None:
+def fan_check(n: int, area: float, tol: float, max_it: int, tmp: Path) -> None:
     from clothfold_ros.trajectory import fan
 
     pts = fan()
@@ -119,7 +119,7 @@ def fan_check(n: int, area: float, tol: float, tmp: Path) -> None:
     fast, ref = [], []
     for i in idx:
         h, tilt = (float(v) for v in pts[i])
-        f = run_worker(ROOT, area, h, tilt, tol, 80, tmp)
+        f = run_worker(ROOT, area, h, tilt, tol, max_it, tmp)
         r = run_worker(ROOT, area, h, tilt, tol / TIGHTEN, 3000, tmp)
         fl = f["loss"] * 1000 if f["ok"] else float("inf")
         rl = r["loss"] * 1000 if r["ok"] else float("inf")
@@ -172,7 +172,7 @@ def main() -> None:
                               f"{np.array_equal(timed['final'], fast['final'])}; speed-up "
                               f"{fast['wall'] / timed['wall']:.2f}x", flush=True)
                     if area in TARGETS:
-                        print(f"             ratio to target ({TARGETS[area]:.0f} s on 2 cores): "
+                        print(f"             ratio to target ({TARGETS[area]:.0f} s on 2 cores), {args.threads}-thread run: "
                               f"{timed['wall'] / TARGETS[area]:.2f}")
                 if not (args.no_reference or args.baseline_only):
                     ref = run_worker(ROOT, area, *FAN_POINT, tol / TIGHTEN, 3000, tmp)
@@ -191,7 +191,7 @@ def main() -> None:
                     print(f"             speed-up now vs {args.baseline}: {old['wall'] / now['wall']:.2f}x "
                           f"(per Newton iteration {old['wall'] / old['its'] / (now['wall'] / now['its']):.2f}x)", flush=True)
             if args.fan:
-                fan_check(args.fan, args.fan_area, tol, tmp)
+                fan_check(args.fan, args.fan_area, tol, cfg.max_newton_iterations, tmp)
         finally:
             if base is not None:
                 subprocess.run(["git", "worktree", "remove", "--force", str(base)], cwd=ROOT, capture_output=True)

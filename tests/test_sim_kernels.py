@@ -118,8 +118,11 @@ def test_hessian_pattern_assembles_the_dense_sum_and_grows_for_contacts():
     for dofs, hs in zip(blocks, (he, hh)):
         for d, m in zip(dofs, hs):
             dense[np.ix_(d, d)] += 0.5 * m
-    upper = pat.matrix(pat.assemble([he, hh], 0.5, diag)).toarray()
+    data = pat.assemble([he, hh], 0.5, diag)
+    upper = pat.matrix(data).toarray()
     assert np.allclose(upper, np.triu(dense))
+    s = rng.uniform(0.5, 2.0, size=n)  # the diagonal scaling the simulator factorizes with
+    assert np.allclose(pat.matrix(pat.scaled(data, s)).toarray(), np.triu(s[:, None] * dense * s[None, :]))
     # a contact between two far-apart vertices is outside the elastic pattern: it grows
     a, c = 0, len(v) - 1
     dofs = np.r_[3 * a : 3 * a + 3, 3 * c : 3 * c + 3]

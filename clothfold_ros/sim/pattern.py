@@ -121,16 +121,18 @@ class HessianPattern:
 
     def _set_keys(self, keys: np.ndarray) -> None:
         """The sorted block keys a * nv + b and the BSR arrays (indptr, indices) they define,
-        with the DOF row and column of every value (dof_rows, dof_cols)."""
+        with the block row of every block (block_rows)."""
         self.keys = keys
         self.nnz = len(keys)
-        a = keys // self.nv
+        self.block_rows = keys // self.nv
         self.indices = (keys % self.nv).astype(np.int32)
-        self.indptr = np.searchsorted(a, np.arange(self.nv + 1)).astype(np.int32)
-        i = np.arange(BLOCK)
-        self.dof_rows = (BLOCK * a[:, None, None] + i[None, :, None] + 0 * i[None, None, :]).ravel()
-        self.dof_cols = (BLOCK * self.indices.astype(np.int64)[:, None, None] + 0 * i[None, :, None]
-                         + i[None, None, :]).ravel()
+        self.indptr = np.searchsorted(self.block_rows, np.arange(self.nv + 1)).astype(np.int32)
+
+    def scaled(self, data: np.ndarray, scale: np.ndarray) -> np.ndarray:
+        """Values of diag(scale) A diag(scale) for the values `data` of A (scale: (ndof,))."""
+        s = scale.reshape(-1, BLOCK)
+        blocks = data.reshape(-1, BLOCK, BLOCK) * s[self.block_rows][:, :, None] * s[self.indices][:, None, :]
+        return blocks.ravel()
 
     def _insert(self, new_keys: np.ndarray) -> None:
         """Add sorted block keys absent from the pattern; existing slots shift past the inserted ones."""

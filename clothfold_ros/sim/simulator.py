@@ -295,7 +295,7 @@ class ClothSimulator:
             raise SimulationFailure(f"{when}: Newton matrix has a non-positive or non-finite diagonal")
         scale = 1.0 / np.sqrt(d)
         try:
-            self._solver.factor(data * scale[pat.dof_rows] * scale[pat.dof_cols])
+            self._solver.factor(pat.scaled(data, scale))
             p = scale * self._solver.solve(-scale * grad)
         except np.linalg.LinAlgError as err:
             raise SimulationFailure(f"{when}: linear solve failed: {err}") from err
