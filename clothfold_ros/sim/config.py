@@ -25,7 +25,7 @@ class SimConfig:
     pattern_growth_rings: int = 0  # a new contact pair also adds its neighbours' pairs (rings) to the pattern
     pattern_keep_solves: int = 1  # contact entries unused for this many steps are stale ...
     pattern_prune_fraction: float = 0.0  # ... and dropped once they are this share of the contact entries
-    pattern_growth_iterations: int = 1  # new contact pairs join the pattern in a solve's first N iterations, later ones wait
+    pattern_growth_iterations: int = 3  # new contact pairs join the pattern in a solve's first N iterations, later ones wait
     linear_solver: str = "auto"  # "pardiso", "superlu" or "auto" (PARDISO when MKL is there)
     xi: float | None = None  # m, minimum mid-surface separation (offset)
     dhat: float | None = None  # m, barrier activation distance beyond xi
