@@ -195,3 +195,26 @@ def test_spd_solvers_solve_on_the_persistent_pattern():
             full = (upper + sp.triu(upper, k=1).T).toarray()
             assert np.allclose(full @ solver.solve(rhs), rhs, atol=1e-9)
         assert solver.analyses == (1 if backend == "pardiso" else 2)
+
+
+def test_solver_and_settings_reject_bad_block_rhs_and_thread_counts():
+    import pytest
+
+    from clothfold_ros.sim.config import SimConfig
+
+    v, f = rectangle(0.02, 0.02, 5e-4, 0.0)
+    pat = HessianPattern(3 * len(v), [element_dofs(f)])
+    solver = spd_solver("pardiso")
+    with pytest.raises(ValueError, match="block must be >= 1"):
+        solver.set_pattern(pat.indptr, pat.indices, 0)
+    solver.set_pattern(pat.indptr, pat.indices, pat.block)
+    solver.factor(pat.assemble([np.zeros((len(f), 9, 9))], 1.0, np.ones(3 * len(v))))
+    with pytest.raises(ValueError, match="right-hand side must have"):
+        solver.solve(np.ones(3 * len(v) - 1))
+    with pytest.raises(ValueError, match="multiple of 3"):
+        HessianPattern(3 * len(v) + 1, [element_dofs(f)])
+    for bad in (dict(ccd_threads=0), dict(solver_threads=0), dict(threads=0)):
+        with pytest.raises(ValueError, match="must be >= 1"):
+            SimConfig(**bad)
+    with pytest.raises(ValueError, match="pattern_growth_iterations"):
+        SimConfig(pattern_growth_iterations=0)

@@ -7,6 +7,8 @@ so the barrier is kappa * B(x) and friction D(u) is built from that barrier's fo
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import ipctk
 import numpy as np
 import scipy.sparse as sp
@@ -207,16 +209,23 @@ class ContactModel:
         if candidates is None:
             candidates = self.candidates(x0, x1)
         a, b = np.asfortranarray(x0), np.asfortranarray(x1)
-        if self.ccd_threads != self.threads:
-            ipctk.set_num_threads(self.ccd_threads)
-        try:
+        with self._ipctk_threads(self.ccd_threads):
             self_ccd = candidates.compute_collision_free_stepsize(
                 self.mesh, a, b, min_distance=self.ccd_min_distance, narrow_phase_ccd=self.narrow_phase
             )
-        finally:
-            if self.ccd_threads != self.threads:
-                ipctk.set_num_threads(self.threads)
         return min(float(self_ccd), self.table_step(x0[:, 2], x1[:, 2]))
+
+    @contextmanager
+    def _ipctk_threads(self, n: int):
+        """Run ipctk on n threads inside the block, on `threads` again after it."""
+        if n == self.threads:
+            yield
+            return
+        ipctk.set_num_threads(n)
+        try:
+            yield
+        finally:
+            ipctk.set_num_threads(self.threads)
 
     def table_step(self, z0: np.ndarray, z1: np.ndarray) -> float:
         """Largest fraction of z0 -> z1 keeping every vertex above z = xi (10 % margin)."""

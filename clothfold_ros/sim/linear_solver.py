@@ -4,9 +4,9 @@ The Newton matrix keeps one upper block-triangular pattern of 3x3 vertex blocks 
 iterations (BSR, see `pattern.HessianPattern`); only its values change. PARDISO then
 runs the symbolic analysis (reordering, phase 11) once per pattern and only the numeric
 factorization (phase 22) and the solve (phase 33) per Newton iteration. Given as blocks
-(iparm[36] = 3) PARDISO orders the vertex graph instead of the DOF graph and works on
-dense blocks: at 12K triangles the analysis took 12 ms instead of 80 ms and the
-factorization 45 ms instead of 79 ms (bench/bench_linear.py). Indices are zero-based
+(iparm[36] = 3) PARDISO orders the vertex graph instead of the DOF graph: on Newton
+matrices of the 12K fold the analysis took 11-13 ms instead of 45-93 ms, the factorization
+about as long as entry by entry (bench/bench_linear.py compares both). Indices are zero-based
 (iparm[34] = 1) and the matrix type is real SPD (mtype 2), so nothing is copied.
 
 PARDISO runs on `threads` MKL threads (a thread-local setting, default 1). With more than

@@ -110,11 +110,13 @@ class HessianPattern:
             slots[~keep] = -1  # lower blocks: their mirror is stored
             self.block_slots.append(slots)
         dof = np.arange(ndof)
-        self._base_diag = BLOCK * BLOCK * np.searchsorted(base_keys, diag_keys[dof // BLOCK]) + (BLOCK + 1) * (dof % BLOCK)
+        self._diag_block = np.searchsorted(base_keys, diag_keys[dof // BLOCK])  # base block of each DOF's diagonal
+        self._diag_offset = (BLOCK + 1) * (dof % BLOCK)  # its place in the block
+        self._base_diag = BLOCK * BLOCK * self._diag_block + self._diag_offset
         self.base_nnz = len(base_keys)
         self._set_keys(base_keys)
         self.base_pos = np.arange(self.base_nnz)  # slot of each base block in the full pattern
-        self.diag_slots = self._base_diag.copy()  # value index of each DOF's diagonal entry
+        self.diag_slots = self._base_diag  # value index of each DOF's diagonal entry (moves with base_pos)
         self.is_base = np.ones(self.nnz, dtype=bool)  # element or diagonal block (never pruned)
         self.last_used = np.zeros(self.nnz, dtype=np.int64)  # solve in which a contact block was last used
         self.version = 0
@@ -146,8 +148,7 @@ class HessianPattern:
 
     def _remap(self, old_to_new: np.ndarray) -> None:
         self.base_pos = old_to_new[self.base_pos]
-        block = self._base_diag // (BLOCK * BLOCK)
-        self.diag_slots = BLOCK * BLOCK * self.base_pos[block] + self._base_diag % (BLOCK * BLOCK)
+        self.diag_slots = BLOCK * BLOCK * self.base_pos[self._diag_block] + self._diag_offset
         self.version += 1
 
     def _prune(self) -> bool:
