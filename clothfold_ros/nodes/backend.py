@@ -91,7 +91,7 @@ class LockStepBackend(Node):
                           for i in range(self.n)]
         self.state_pubs = [self.create_publisher(JointState, common.gripper_topic(i, "state"), common.FEEDBACK)
                            for i in range(self.n)]
-        self.marker_pubs = [self.create_publisher(Marker, common.gripper_topic(i, "marker"), common.LATCHED)
+        self.marker_pubs = [self.create_publisher(Marker, common.gripper_topic(i, "marker"), common.STREAMED)
                             for i in range(self.n)]
         self.drawn: dict[int, Pose] = {}  # where each gripper is drawn: its last pose (kept after it opens)
         for i in range(self.n):

@@ -64,7 +64,7 @@ class ClothSimNode(LockStepBackend):
         self.garment, self.material, self.config = self.scene.garment, self.scene.material, self.scene.config
         self.flat = self.scene.flat
         self.state_pub = self.create_publisher(ClothState, common.CLOTH_STATE, common.LATCHED)
-        self.marker_pub = self.create_publisher(Marker, common.CLOTH_MARKER, common.LATCHED)
+        self.marker_pub = self.create_publisher(Marker, common.CLOTH_MARKER, common.STREAMED)
         self.points_pub = self.create_publisher(PointCloud2, common.CLOTH_POINTS, common.LATCHED)
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.episode = None

@@ -41,6 +41,10 @@ def _qos(depth: int, durability: DurabilityPolicy = DurabilityPolicy.VOLATILE) -
 
 
 LATCHED = _qos(1, DurabilityPolicy.TRANSIENT_LOCAL)  # /fold/spec, /keypoints, /cloth/state, paths
+# per-step visualisation (cloth mesh, gripper boxes): latched for a late viewer, and deep enough
+# that a slow reader (the recorder, a viewer on a busy machine) gets every step: a reliable
+# KEEP_LAST writer drops its oldest unacknowledged sample when its history is full
+STREAMED = _qos(100, DurabilityPolicy.TRANSIENT_LOCAL)
 TARGETS = _qos(1000)  # streamed target poses: reliable, deep (lock-step needs every sample)
 COMMANDS = _qos(10)  # gripper open/close
 RESULTS = _qos(10)  # /fold/result
