@@ -1,6 +1,8 @@
 """Linear-solver benchmark: one Newton matrix of the default fold, factorized and solved by
-PARDISO with the simulator's settings (3x3 vertex blocks, minimum degree) and with the
-previous ones (the same matrix entry by entry, CSR), in the same run.
+PARDISO with the simulator's settings (3x3 vertex blocks, minimum degree, mixed precision:
+single-precision factorization refined in double to a relative residual of 1e-8) and with
+the previous ones (the same blocks factorized in double precision), in the same run; the
+matrix entry by entry (CSR, double) for reference.
 
     python bench/bench_linear.py [--areas 2e-4 5e-5] [--steps 3] [--repeat 10] [--threads 2]
 
@@ -35,7 +37,11 @@ from clothfold_ros.sim.runner import flat_start  # noqa: E402
 from clothfold_ros.sim.simulator import ClothSimulator  # noqa: E402
 from clothfold_ros.trajectory import FoldTrajectory  # noqa: E402
 
-SETTINGS = {"current (3x3 blocks, minimum degree)": True, "previous (entries, CSR, minimum degree)": False}
+SETTINGS = {  # name: (3x3 blocks, precision)
+    "current (3x3 blocks, mixed precision)": (True, "mixed"),
+    "previous (3x3 blocks, double)": (True, "double"),
+    "entries (CSR, double)": (False, "double"),
+}
 
 
 class Capture(ClothSimulator):
@@ -67,11 +73,11 @@ def newton_matrix(area: float, steps: int):
     return len(g.triangles), sim.captured
 
 
-def measure(matrix, full: sp.csr_matrix, rhs, repeat: int, threads: int = 1) -> dict:
+def measure(matrix, full: sp.csr_matrix, rhs, repeat: int, threads: int = 1, precision: str = "mixed") -> dict:
     data, indptr, indices, block = matrix
     t_a, t_f, t_s = [], [], []
     for _ in range(repeat):
-        s = PardisoSPD(threads=threads)
+        s = PardisoSPD(threads=threads, precision=precision)
         s.set_pattern(indptr, indices, block)
         tic = time.perf_counter()
         s.factor(data)  # analysis + first factorization
@@ -104,14 +110,15 @@ def main(argv: list[str] | None = None) -> int:
         full = (upper + sp.triu(upper, k=1).T).tocsr()
         print(f"max area {area:g} m^2: {tris} triangles, {n} unknowns, {upper.nnz} upper nonzeros in "
               f"{len(cap['blocks'][2])} upper 3x3 blocks (Newton matrix of step {a.steps})")
-        rows = {name: measure(cap["blocks" if blocks else "entries"], full, rhs, a.repeat)
-                for name, blocks in SETTINGS.items()}
+        rows = {name: measure(cap["blocks" if blocks else "entries"], full, rhs, a.repeat, precision=precision)
+                for name, (blocks, precision) in SETTINGS.items()}
         for name, r in rows.items():
             print(f"  {name:42s} analysis {r['analysis'] * 1e3:7.2f} ms  factor {r['factor'] * 1e3:7.2f} ms"
                   f"  solve {r['solve'] * 1e3:6.2f} ms  residual {r['residual']:.1e}")
-        cur, prev = rows.values()
+        cur, prev, _ = rows.values()
         print(f"  ratio current / previous: analysis {cur['analysis'] / prev['analysis']:.2f}, factor "
-              f"{cur['factor'] / prev['factor']:.2f}, solve {cur['solve'] / prev['solve']:.2f}")
+              f"{cur['factor'] / prev['factor']:.2f}, solve {cur['solve'] / prev['solve']:.2f}, factor + solve (one "
+              f"Newton iteration) {(cur['factor'] + cur['solve']) / (prev['factor'] + prev['solve']):.2f}")
         if a.threads > 1:
             t = measure(cap["blocks"], full, rhs, a.repeat, a.threads)
             print(f"  current on {a.threads} threads: factor {t['factor'] * 1e3:7.2f} ms  solve {t['solve'] * 1e3:6.2f} ms"

@@ -185,16 +185,65 @@ def test_spd_solvers_solve_on_the_persistent_pattern():
     he = rng.normal(size=(len(f), 9, 9))
     he = np.einsum("eij,ekj->eik", he, he)  # PSD blocks
     rhs = rng.normal(size=n)
-    for backend in ("pardiso", "superlu"):
-        solver = spd_solver(backend)
+    for backend, precision in (("pardiso", "mixed"), ("pardiso", "double"), ("superlu", "double")):
+        solver = spd_solver(backend, precision=precision)
         solver.set_pattern(pat.indptr, pat.indices, pat.block)
         for scale in (1.0, 2.0):  # refactor on the same pattern: analysed once
             data = pat.assemble([he], scale, np.ones(n))
             solver.factor(data)
             upper = pat.matrix(data)
             full = (upper + sp.triu(upper, k=1).T).toarray()
-            assert np.allclose(full @ solver.solve(rhs), rhs, atol=1e-9)
+            x = solver.solve(rhs)
+            # mixed: refined in double to a relative residual of 1e-8; double: a direct solve
+            assert np.linalg.norm(full @ x - rhs) <= (1e-8 if precision == "mixed" else 1e-12) * np.linalg.norm(rhs)
         assert solver.analyses == (1 if backend == "pardiso" else 2)
+        assert solver.fallbacks == 0
+    assert solver_mixed_refines(pat, he, rhs) >= 1  # single precision alone does not reach 1e-8 here
+
+
+def solver_mixed_refines(pat, he, rhs) -> int:
+    solver = spd_solver("pardiso", precision="mixed")
+    solver.set_pattern(pat.indptr, pat.indices, pat.block)
+    solver.factor(pat.assemble([he], 1.0, np.ones(pat.ndof)))
+    solver.solve(rhs)
+    return solver.refinements
+
+
+def test_symmetric_matvec_of_the_upper_block_triangle():
+    from clothfold_ros.sim.linear_solver import symmetric_block_matvec
+
+    v, f = rectangle(0.03, 0.03, 5e-4, 0.0)
+    n = 3 * len(v)
+    pat = HessianPattern(n, [element_dofs(f)])
+    rng = np.random.default_rng(2)
+    he = rng.normal(size=(len(f), 9, 9))
+    data = pat.assemble([he + he.transpose(0, 2, 1)], 1.0, rng.normal(size=n))
+    upper = pat.matrix(data)
+    full = (upper + sp.triu(upper, k=1).T).toarray()
+    x = rng.normal(size=n)
+    assert np.allclose(symmetric_block_matvec(pat.indptr, pat.indices, data, 3, x), full @ x, rtol=1e-12, atol=1e-12)
+    csr = sp.csr_matrix(np.triu(full))  # the same matrix entry by entry (block 1)
+    y = symmetric_block_matvec(csr.indptr.astype(np.int32), csr.indices.astype(np.int32), csr.data, 1, x)
+    assert np.allclose(y, full @ x, rtol=1e-12, atol=1e-12)
+    import pytest
+
+    with pytest.raises(ValueError, match="block must be 1 or 3"):
+        symmetric_block_matvec(pat.indptr, pat.indices, data, 2, x)
+
+
+def test_mixed_precision_falls_back_to_double_where_single_precision_fails():
+    """An SPD matrix that is singular in single precision: [[1, 1 - 1e-9], [1 - 1e-9, 1]]
+    (1 - 1e-9 rounds to 1 in float32) plus a well-conditioned third unknown."""
+    c = 1.0 - 1e-9
+    full = np.array([[1.0, c, 0.0], [c, 1.0, 0.0], [0.0, 0.0, 2.0]])
+    upper = sp.csr_matrix(np.triu(full))
+    solver = spd_solver("pardiso", precision="mixed")
+    solver.set_pattern(upper.indptr.astype(np.int32), upper.indices.astype(np.int32), 1)
+    solver.factor(upper.data)
+    rhs = np.array([1.0, -1.0, 2.0])
+    x = solver.solve(rhs)
+    assert solver.fallbacks == 1
+    assert np.allclose(x, np.linalg.solve(full, rhs), rtol=1e-6)
 
 
 def test_solver_and_settings_reject_bad_block_rhs_and_thread_counts():

@@ -27,6 +27,7 @@ class SimConfig:
     pattern_prune_fraction: float = 0.0  # ... and dropped once they are this share of the contact entries
     pattern_growth_iterations: int = 3  # new contact pairs join the pattern in a solve's first N iterations, later ones wait
     linear_solver: str = "auto"  # "pardiso", "superlu" or "auto" (PARDISO when MKL is there)
+    linear_precision: str = "mixed"  # PARDISO: "mixed" (single factorization, double refinement to 1e-8) or "double"
     xi: float | None = None  # m, minimum mid-surface separation (offset)
     dhat: float | None = None  # m, barrier activation distance beyond xi
     ccd_fraction: float = 0.99  # CCD keeps pairs this fraction of xi apart; the line search enforces xi
@@ -43,6 +44,8 @@ class SimConfig:
             raise ValueError(f"dt must be > 0 s, got {self.dt}")
         if not self.newton_tol > 0:
             raise ValueError(f"newton_tol must be > 0 m/s, got {self.newton_tol}")
+        if self.linear_precision not in ("mixed", "double"):
+            raise ValueError(f"linear_precision must be 'mixed' or 'double', got {self.linear_precision!r}")
         if self.pattern_growth_iterations < 1:
             raise ValueError("pattern_growth_iterations must be >= 1")
         if self.threads < 1 or self.ccd_threads < 1 or self.solver_threads < 1:

@@ -65,6 +65,22 @@ def _scatter(data, slots, values):
         data[slots[i]] += values[i]
 
 
+@nb.njit(cache=True)
+def _scale_blocks(data, indptr, indices, scale):
+    """Block values of diag(scale) A diag(scale), A given by its BSR arrays (the product
+    in the order data * scale_row * scale_col)."""
+    out = np.empty_like(data)
+    for a in range(len(indptr) - 1):
+        for s in range(indptr[a], indptr[a + 1]):
+            b = indices[s]
+            for i in range(BLOCK):
+                si = scale[BLOCK * a + i]
+                for j in range(BLOCK):
+                    k = BLOCK * BLOCK * s + BLOCK * i + j
+                    out[k] = data[k] * si * scale[BLOCK * b + j]
+    return out
+
+
 class HessianPattern:
     """Upper block pattern over `ndof` DOFs (3 per vertex) for element blocks, the diagonal
     and contacts. `nnz` counts stored 3x3 blocks; value arrays have 9 nnz entries."""
@@ -132,9 +148,7 @@ class HessianPattern:
 
     def scaled(self, data: np.ndarray, scale: np.ndarray) -> np.ndarray:
         """Values of diag(scale) A diag(scale) for the values `data` of A (scale: (ndof,))."""
-        s = scale.reshape(-1, BLOCK)
-        blocks = data.reshape(-1, BLOCK, BLOCK) * s[self.block_rows][:, :, None] * s[self.indices][:, None, :]
-        return blocks.ravel()
+        return _scale_blocks(data, self.indptr, self.indices, scale)
 
     def _insert(self, new_keys: np.ndarray) -> None:
         """Add sorted block keys absent from the pattern; existing slots shift past the inserted ones."""

@@ -115,7 +115,7 @@ class ClothSimulator:
         self.grasps: dict[int, Grasp] = {}
         import ipctk
 
-        self._solver = spd_solver(cfg.linear_solver, cfg.solver_threads)
+        self._solver = spd_solver(cfg.linear_solver, cfg.solver_threads, cfg.linear_precision)
         self._project = membrane.PROJECT_ABS if cfg.psd_projection == "abs" else membrane.PROJECT_CLAMP
         self.contact.psd = ipctk.PSDProjectionMethod.ABS if cfg.psd_projection == "abs" else ipctk.PSDProjectionMethod.CLAMP
 
