@@ -320,6 +320,7 @@ class ClothSimulator:
         prev_min = np.inf
         # col: collisions at x (from the warm start, then carried over from the line search)
         diag = self._mass_dof if pull is None else self._mass_dof + np.repeat(pull[0], 3)
+        energy = None  # incremental potential at x (J), from the last line search while kappa is unchanged
         for it in range(1, cfg.max_newton_iterations + 1):
             if col is None:
                 tic = time.perf_counter()
@@ -355,22 +356,27 @@ class ClothSimulator:
             residuals.append(residual)
             if len(residuals) >= cfg.newton_window and max(residuals[-cfg.newton_window :]) <= cfg.newton_tol:
                 return x, it, halvings, residual, col
-            x_new, col_t, n_halved = self._line_search(x, p, grad, x_hat, x_prev, col, pull, phases, when,
-                                                       f"Newton iteration {it}, residual {residual:.3g} m/s")
+            x_new, col_t, n_halved, energy = self._line_search(x, p, grad, x_hat, x_prev, col, pull, phases, when,
+                                                               f"Newton iteration {it}, residual {residual:.3g} m/s",
+                                                               energy)
             halvings += n_halved
             x = x_new
             col = col_t
             min_d = self.contact.min_distance(col_t, x)
             if np.isfinite(min_d):
+                kappa = self.contact.kappa
                 self.contact.update_kappa(prev_min if np.isfinite(prev_min) else min_d, min_d)
+                if self.contact.kappa != kappa:
+                    energy = None  # a stiffer barrier: the potential at x changed
             prev_min = min_d
         raise SimulationFailure(
             f"{when}: Newton did not converge in {cfg.max_newton_iterations} iterations "
             f"(residual {residuals[-1]:.3g} m/s)"
         )
 
-    def _line_search(self, x, p, grad, x_hat, x_prev, col, pull, phases, when: str, context: str):
-        """Step length along the Newton direction p: (new x, its collisions, halvings).
+    def _line_search(self, x, p, grad, x_hat, x_prev, col, pull, phases, when: str, context: str, e0=None):
+        """Step length along the Newton direction p: (new x, its collisions, halvings, its
+        incremental potential). e0: the potential at x if known (the last line search's).
 
         CCD bounds the step (every point of the path keeps ccd_fraction x xi apart), then
         it is halved until the state is more than xi apart everywhere and the incremental
@@ -389,7 +395,8 @@ class ClothSimulator:
         tic = time.perf_counter()
         smallest = 0.5**cfg.max_line_search_halvings
         slope = float(grad @ p.ravel())
-        e0 = self._energy(x, x_hat, x_prev, col, pull)
+        if e0 is None:
+            e0 = self._energy(x, x_hat, x_prev, col, pull)
         halvings = 0
         while True:
             trial = x + alpha * p
@@ -416,4 +423,4 @@ class ClothSimulator:
                 trial, col_t, e_trial, alpha = shorter, col_s, e_s, 0.5 * alpha
                 halvings += 1
         phases["line_search"] += time.perf_counter() - tic
-        return trial, col_t, halvings
+        return trial, col_t, halvings, e_trial
