@@ -17,10 +17,12 @@ def write_step_stats(outcome: FoldOutcome, path: Path) -> None:
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["time_s", "newton_iterations", "line_search_halvings", "contacts", "min_distance_m",
-                    "kappa", "residual_m_per_s", "wall_time_s"] + [f"{p}_s" for p in phases])
+                    "kappa", "residual_m_per_s", "wall_time_s", "analyses", "solver_fallbacks"]
+                   + [f"{p}_s" for p in phases])
         for s in outcome.step_stats:
             w.writerow([f"{s.time:.4f}", s.newton_iterations, s.line_search_halvings, s.contacts,
-                        f"{s.min_distance:.6g}", f"{s.kappa:.6g}", f"{s.residual:.6g}", f"{s.wall_time:.4f}"]
+                        f"{s.min_distance:.6g}", f"{s.kappa:.6g}", f"{s.residual:.6g}", f"{s.wall_time:.4f}",
+                        s.analyses, s.solver_fallbacks]
                        + [f"{s.phases.get(p, 0.0):.4f}" for p in phases])
 
 

@@ -50,6 +50,7 @@ class StepStats:
     grasp_lag: float = 0.0  # m, largest distance of held cloth from its grip point at the step's end
     slipped: int = 0  # held vertices that slipped in the grip this step (lag > SimConfig.grasp_slip)
     analyses: int = 0  # symbolic factorizations (new sparsity pattern) this step
+    solver_fallbacks: int = 0  # Newton systems factorized in double because single precision failed
     phases: dict[str, float] = field(default_factory=dict)  # s per phase
 
 
@@ -239,7 +240,7 @@ class ClothSimulator:
         self.contact.lag_friction(x_prev)
         phases["friction_lag"] += time.perf_counter() - tic
 
-        analyses0 = self._solver.analyses
+        analyses0, fallbacks0 = self._solver.analyses, self._solver.fallbacks
         x, col = self._warm_start(x_prev, weight, anchor, phases)
         x, iterations, halvings, residual, col = self._newton(x, x_prev, x_hat, phases, when, pull, col)
         if self.config.check_intersections:
@@ -264,6 +265,7 @@ class ClothSimulator:
             grasp_lag=lag,
             slipped=slipped,
             analyses=self._solver.analyses - analyses0,
+            solver_fallbacks=self._solver.fallbacks - fallbacks0,
         )
 
     def _slip(self, x: np.ndarray, poses: dict[int, Pose], anchor: np.ndarray) -> tuple[float, int]:
