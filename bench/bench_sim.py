@@ -14,10 +14,12 @@ result must be bit-for-bit the one-thread result) and measures the targets on it
 are for 2 cores; every other run uses one thread. `--fan N` also runs N fan points (spread over h and tilt) fast and tight at
 `--fan-area` and prints the Spearman rank correlation of their losses. `--tols` also runs
 the fold at other Newton tolerances and compares each with the reference (the stopping
-rule's calibration).
+rule's calibration). `--double` also runs the fast fold with every Newton system factorized
+in double precision (`linear_precision = "double"`) and compares the default mixed-precision
+solves with it (speed, loss, final-mesh distance).
 
     python bench/bench_sim.py [--areas 2e-4 5e-5] [--threads 2] [--baseline a11945f | --no-baseline]
-                              [--no-reference] [--tols 3e-3 1e-2] [--fan 8 --fan-area 5e-4 [--fan-only]]
+                              [--no-reference] [--double] [--tols 3e-3 1e-2] [--fan 8 --fan-area 5e-4 [--fan-only]]
 """
 from __future__ import annotations
 
@@ -52,7 +54,7 @@ cot = material("cotton")
 g = make_shirt(1, max_area=a["area"])
 spec = fold_spec("left_sleeve", g.keypoints(flat_start(g, cot)))
 threads = dict(solver_threads=a["threads"], ccd_threads=a["threads"]) if a["threads"] > 1 else {}
-cfg = SimConfig(newton_tol=a["tol"], max_newton_iterations=a["max_it"], **threads)
+cfg = SimConfig(newton_tol=a["tol"], max_newton_iterations=a["max_it"], **threads, **a.get("config", {}))
 small = make_shirt(1, max_area=1e-2)  # compile the numba kernels before the clock starts
 run_fold(small, fold_spec("left_sleeve", small.keypoints(flat_start(small, cot))), cot, 0.5, a["h"], a["tilt"], 0.12, config=cfg)
 t0 = time.perf_counter()
@@ -66,11 +68,13 @@ print("RESULT " + json.dumps(dict(ok=out.success, reason=out.reason, loss=out.lo
 
 
 def run_worker(pythonpath: Path, area: float, h: float, tilt: float, tol: float, max_it: int, tmp: Path,
-               threads: int = 1) -> dict:
+               threads: int = 1, config: dict | None = None) -> dict:
+    """One fold in a fresh process; config: further SimConfig fields (this tree's)."""
     final = tmp / f"final-{os.getpid()}-{time.monotonic_ns()}.npy"
     env = dict(os.environ, PYTHONPATH=f"{pythonpath}:{os.environ.get('PYTHONPATH', '')}",
                NUMBA_NUM_THREADS=str(threads), MKL_NUM_THREADS=str(threads))
-    args = json.dumps(dict(area=area, h=h, tilt=tilt, tol=tol, max_it=max_it, final=str(final), threads=threads))
+    args = json.dumps(dict(area=area, h=h, tilt=tilt, tol=tol, max_it=max_it, final=str(final), threads=threads,
+                           **({"config": config} if config else {})))
     proc = subprocess.run([sys.executable, "-c", WORKER, args], cwd=pythonpath, env=env, capture_output=True, text=True)
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")), None)
     if line is None:
@@ -89,12 +93,16 @@ def describe(tag: str, r: dict) -> str:
             f"             phases: {split}")
 
 
+def print_vs(label: str, r: dict, other: dict, name: str) -> None:
+    """Loss difference and per-vertex final-mesh distance of run r from the run `other`."""
+    if r["ok"] and other["ok"]:
+        dist = np.linalg.norm(r["final"] - other["final"], axis=1)
+        print(f"             {label}: loss {1000 * (r['loss'] - other['loss']):+.3f} mm; final meshes "
+              f"{dist.mean() * 1000:.3f} mm mean, {dist.max() * 1000:.3f} mm max per vertex from {name}", flush=True)
+
+
 def print_vs_reference(tag: str, r: dict, ref: dict) -> None:
-    """Loss difference and per-vertex final-mesh distance of run r from the reference."""
-    if r["ok"] and ref["ok"]:
-        dist = np.linalg.norm(r["final"] - ref["final"], axis=1)
-        print(f"             {tag} - reference: loss {1000 * (r['loss'] - ref['loss']):+.2f} mm; final meshes "
-              f"{dist.mean() * 1000:.2f} mm mean, {dist.max() * 1000:.2f} mm max per vertex", flush=True)
+    print_vs(f"{tag} - reference", r, ref, "the reference")
 
 
 def worktree(commit: str, tmp: Path) -> Path:
@@ -141,6 +149,8 @@ def main() -> None:
     ap.add_argument("--no-baseline", action="store_true")
     ap.add_argument("--threads", type=int, default=1, help="also run the fast fold on this many threads")
     ap.add_argument("--no-reference", action="store_true")
+    ap.add_argument("--double", action="store_true",
+                    help="also run the fast fold with double-precision factorizations (linear_precision double)")
     ap.add_argument("--baseline-only", action="store_true", help="only the comparison with the earlier solver")
     ap.add_argument("--tols", type=float, nargs="*", default=[], help="other Newton tolerances to compare (m/s)")
     ap.add_argument("--fan", type=int, default=0, help="also check this many fan points against the reference")
@@ -171,6 +181,14 @@ def main() -> None:
                         print(f"             final mesh bit-for-bit the one-thread mesh: "
                               f"{np.array_equal(timed['final'], fast['final'])}; speed-up "
                               f"{fast['wall'] / timed['wall']:.2f}x", flush=True)
+                    if args.double:
+                        dbl = run_worker(ROOT, area, *FAN_POINT, tol, cfg.max_newton_iterations, tmp,
+                                         config={"linear_precision": "double"})
+                        print(describe("double", dbl))
+                        print_vs("fast - double", fast, dbl, "the all-double run")
+                        print(f"             mixed precision speed-up over double: {dbl['wall'] / fast['wall']:.2f}x "
+                              f"(per Newton iteration {dbl['wall'] / dbl['its'] / (fast['wall'] / fast['its']):.2f}x)",
+                              flush=True)
                     if area in TARGETS:
                         print(f"             ratio to target ({TARGETS[area]:.0f} s on 2 cores), {args.threads}-thread run: "
                               f"{timed['wall'] / TARGETS[area]:.2f}")
