@@ -10,13 +10,13 @@ about as long as entry by entry (bench/bench_linear.py compares both). Indices a
 (iparm[34] = 1) and the matrix type is real SPD (mtype 2), so nothing is copied.
 
 With precision "mixed" (the default) the factorization is computed in single precision
-(iparm[27] = 1: half the memory traffic, 1.4-2x faster at 12K) and every solve is
+(iparm[27] = 1: half the memory traffic, 1.4-1.7x faster at 12K) and every solve is
 refined in double precision against the double matrix (x += L^-T L^-1 (b - A x)) until
 the relative residual is below `tolerance` (1e-8: the Newton direction to eight digits,
 where the Newton tolerance needs about three; a double factorization gives about 3e-14),
 normally in two single-precision solves (one refinement). Where the single factorization
 fails or the refinement does not converge, that system is factorized in double precision
-(counted in `fallbacks`), so a solve never returns a less accurate answer.
+(counted in `fallbacks`), so no solve returns an answer outside the tolerance.
 
 PARDISO runs on `threads` MKL threads (a thread-local setting, default 1). With more than
 one, MKL's conditional numerical reproducibility mode (MKL_CBWR, set before MKL loads)
