@@ -63,7 +63,7 @@ wall = time.perf_counter() - t0
 np.save(a["final"], out.vertices)
 print("RESULT " + json.dumps(dict(ok=out.success, reason=out.reason, loss=out.loss if out.success else None,
       steps=out.steps, its=out.newton_iterations, wall=wall, triangles=len(g.triangles),
-      phases=phase_totals(out))))
+      phases=phase_totals(out), fallbacks=sum(getattr(s, "solver_fallbacks", 0) for s in out.step_stats))))
 """
 
 
@@ -88,8 +88,9 @@ def describe(tag: str, r: dict) -> str:
     tot = sum(r["phases"].values()) or 1.0
     split = ", ".join(f"{k} {100 * v / tot:.0f}%" for k, v in r["phases"].items())
     state = f"loss {r['loss'] * 1000:.2f} mm" if r["ok"] else f"FAILED: {r['reason']}"
+    fallbacks = f"; {r['fallbacks']} solved in double after single precision failed" if r.get("fallbacks") else ""
     return (f"  {tag:<10} {state}; wall {r['wall']:.1f} s ({r['wall'] / 4.2:.1f} s per simulated s); "
-            f"Newton {r['its'] / max(r['steps'], 1):.1f} its/step ({r['its']} in {r['steps']} steps)\n"
+            f"Newton {r['its'] / max(r['steps'], 1):.1f} its/step ({r['its']} in {r['steps']} steps{fallbacks})\n"
             f"             phases: {split}")
 
 
