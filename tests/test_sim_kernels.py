@@ -177,13 +177,24 @@ def test_hessian_pattern_prunes_contact_entries_unused_for_keep_solves():
     assert np.allclose(pat.matrix(pat.assemble([he], 1.0, diag)).toarray(), base)  # element blocks intact
 
 
-def test_spd_solvers_solve_on_the_persistent_pattern():
-    v, f = rectangle(0.05, 0.05, 5e-4, 0.0)
-    n = 3 * len(v)
-    pat = HessianPattern(n, [element_dofs(f)])
-    rng = np.random.default_rng(1)
+def _block_system(width: float, seed: int, psd: bool):
+    """A width x width rectangle's element pattern with random 9x9 element blocks (PSD or symmetric)."""
+    v, f = rectangle(width, width, 5e-4, 0.0)
+    pat = HessianPattern(3 * len(v), [element_dofs(f)])
+    rng = np.random.default_rng(seed)
     he = rng.normal(size=(len(f), 9, 9))
-    he = np.einsum("eij,ekj->eik", he, he)  # PSD blocks
+    he = np.einsum("eij,ekj->eik", he, he) if psd else he + he.transpose(0, 2, 1)
+    return pat, he, rng
+
+
+def _full(pat: HessianPattern, data: np.ndarray) -> np.ndarray:
+    upper = pat.matrix(data)
+    return (upper + sp.triu(upper, k=1).T).toarray()
+
+
+def test_spd_solvers_solve_on_the_persistent_pattern():
+    pat, he, rng = _block_system(0.05, 1, psd=True)
+    n = pat.ndof
     rhs = rng.normal(size=n)
     for backend, precision in (("pardiso", "mixed"), ("pardiso", "double"), ("superlu", "double")):
         solver = spd_solver(backend, precision=precision)
@@ -191,36 +202,23 @@ def test_spd_solvers_solve_on_the_persistent_pattern():
         for scale in (1.0, 2.0):  # refactor on the same pattern: analysed once
             data = pat.assemble([he], scale, np.ones(n))
             solver.factor(data)
-            upper = pat.matrix(data)
-            full = (upper + sp.triu(upper, k=1).T).toarray()
             x = solver.solve(rhs)
             # mixed: refined in double to a relative residual of 1e-8; double: a direct solve
-            assert np.linalg.norm(full @ x - rhs) <= (1e-8 if precision == "mixed" else 1e-12) * np.linalg.norm(rhs)
+            tol = 1e-8 if precision == "mixed" else 1e-12
+            assert np.linalg.norm(_full(pat, data) @ x - rhs) <= tol * np.linalg.norm(rhs)
         assert solver.analyses == (1 if backend == "pardiso" else 2)
         assert solver.fallbacks == 0
-    assert solver_mixed_refines(pat, he, rhs) >= 1  # single precision alone does not reach 1e-8 here
-
-
-def solver_mixed_refines(pat, he, rhs) -> int:
-    solver = spd_solver("pardiso", precision="mixed")
-    solver.set_pattern(pat.indptr, pat.indices, pat.block)
-    solver.factor(pat.assemble([he], 1.0, np.ones(pat.ndof)))
-    solver.solve(rhs)
-    return solver.refinements
+        if precision == "mixed":
+            assert solver.refinements >= 1  # single precision alone does not reach 1e-8 here
 
 
 def test_symmetric_matvec_of_the_upper_block_triangle():
     from clothfold_ros.sim.linear_solver import symmetric_block_matvec
 
-    v, f = rectangle(0.03, 0.03, 5e-4, 0.0)
-    n = 3 * len(v)
-    pat = HessianPattern(n, [element_dofs(f)])
-    rng = np.random.default_rng(2)
-    he = rng.normal(size=(len(f), 9, 9))
-    data = pat.assemble([he + he.transpose(0, 2, 1)], 1.0, rng.normal(size=n))
-    upper = pat.matrix(data)
-    full = (upper + sp.triu(upper, k=1).T).toarray()
-    x = rng.normal(size=n)
+    pat, he, rng = _block_system(0.03, 2, psd=False)
+    data = pat.assemble([he], 1.0, rng.normal(size=pat.ndof))
+    full = _full(pat, data)
+    x = rng.normal(size=pat.ndof)
     assert np.allclose(symmetric_block_matvec(pat.indptr, pat.indices, data, 3, x), full @ x, rtol=1e-12, atol=1e-12)
     csr = sp.csr_matrix(np.triu(full))  # the same matrix entry by entry (block 1)
     y = symmetric_block_matvec(csr.indptr.astype(np.int32), csr.indices.astype(np.int32), csr.data, 1, x)
