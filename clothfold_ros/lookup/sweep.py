@@ -8,6 +8,7 @@ Runs go to a local process pool (default: one worker per core) or to Ray.
 """
 from __future__ import annotations
 
+import functools
 import os
 import sys
 import time
@@ -27,7 +28,7 @@ from ..trajectory import fan
 from . import sweep_dir as layout
 from .scenario import features, grip_distance, scenario, spec_for
 from .sweep_dir import SweepSettings, load_final, read_start
-from .table import write_table
+from .table import git_commit, write_table
 
 __all__ = ["Job", "Progress", "SweepSettings", "fan_points", "finish", "load_final", "prepare_start", "run_job",
            "run_sweep", "stage_target"]
@@ -92,6 +93,13 @@ def _scene(s: SweepSettings) -> Scene:
                                      dt=s.dt, newton_tol=s.newton_tol, max_newton_iterations=s.max_newton_iterations))
 
 
+@functools.lru_cache(maxsize=1)
+def solver_commit() -> str:
+    """Commit of the code this process simulates with (read once: a sweep that runs for hours
+    keeps the code it started with, whatever the checkout does meanwhile); 'unknown' outside git."""
+    return git_commit(Path(__file__).resolve().parents[2])
+
+
 def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
     """Simulate one fan point (all folds of the scenario in turn with the same (h, tilt)).
 
@@ -124,7 +132,7 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
             break
         x, base, loss = out.vertices, out.target, out.loss
     row.update(loss_m=loss if ok else float("nan"), success=ok, reason=reason, wall_time_s=round(wall, 3),
-               newton_iterations=newton, steps=steps)
+               newton_iterations=newton, steps=steps, solver_commit=solver_commit())
     return row, (None if final is None else np.asarray(final, dtype=np.float32))
 
 

@@ -8,7 +8,7 @@ A sweep of one scenario and the lookup table made from it share one directory
 | `settings.json` | sweep, first call | `SweepSettings` (checked on every resume) |
 | `scenario.json` | sweep, first call | features and spec note of the start state (`sweep.prepare_start`) |
 | `start.npz` | sweep, sequence stages only | start `vertices` and `target` (the previous stage's target), m |
-| `runs.jsonl` | sweep, one line per finished run | the resume state: row of each fan point, failures included |
+| `runs.jsonl` | sweep, one line per finished run | the resume state: row of each fan point, failures included, with the commit it simulated with (`solver_commit`) |
 | `finals/pNNN.npy` | sweep, before its runs.jsonl line | final vertices of fan point NNN, float32, m |
 | `finals.npz` | `pack_finals` | `triangles`, `start`, `target` and every `pNNN` (replaces finals/) |
 | `table.csv`, `provenance.json` | `table.write_table` | the tidy table and its provenance |

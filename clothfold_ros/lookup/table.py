@@ -14,6 +14,7 @@ import csv
 import datetime as _dt
 import json
 import subprocess
+from collections import Counter
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -94,6 +95,8 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
         "spec_note": info.get("spec_note", ""), "start_from": info.get("start_from"),
         "start_point": info.get("start_point"), "start_loss_m": info.get("start_loss_m"),
         "git_commit": git_commit(), "command": command,
+        # the code each run simulated with (rows written before runs recorded it: "unrecorded")
+        "run_commits": dict(Counter(r.get("solver_commit", "unrecorded") for r in rows)),
         "resolution": {"max_area_m2": settings["max_area"], "vertices": len(garment.vertices),
                        "triangles": len(garment.triangles)},
         "fan_points": sorted(points), "simulated": len(rows), "missing_points": missing,
