@@ -106,6 +106,7 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
     Returns (row, final vertices (N, 3) float32 or None). Never raises for a failed
     simulation: the row then has success False and the reason.
     """
+    commit = solver_commit()  # before simulating: the code this process started with
     s = job.settings
     sc = scenario(s.scenario)
     scene = _scene(s)
@@ -132,7 +133,7 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
             break
         x, base, loss = out.vertices, out.target, out.loss
     row.update(loss_m=loss if ok else float("nan"), success=ok, reason=reason, wall_time_s=round(wall, 3),
-               newton_iterations=newton, steps=steps, solver_commit=solver_commit())
+               newton_iterations=newton, steps=steps, solver_commit=commit)
     return row, (None if final is None else np.asarray(final, dtype=np.float32))
 
 
