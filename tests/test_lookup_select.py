@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from clothfold_ros.lookup.planner_selector import Selection, TableSelector
-from clothfold_ros.lookup.plot import plot_best_worst, plot_landscape
+from clothfold_ros.lookup.plot import plot_best_worst, plot_landscape, plot_overview
 from clothfold_ros.lookup.regret import evaluate, mean_regret
-from clothfold_ros.lookup.scenario import (SCENARIOS, definition_features, features, flat_keypoints,
+from clothfold_ros.lookup.scenario import (SCENARIO_GROUPS, SCENARIOS, definition_features, features, flat_keypoints,
                                            generation_order, normalized_distance)
 from clothfold_ros.lookup.select import choose, smoothed_loss
 from clothfold_ros.lookup.table import COLUMNS, FEATURE_NAMES, Table
@@ -156,6 +156,19 @@ def test_plots_write_png(tmp_path: Path) -> None:
     for fn, name in ((plot_landscape, "landscape.png"), (plot_best_worst, "best_worst.png")):
         out = fn(tmp_path / "shape1", tmp_path / "plots" / name)
         assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 5000
+
+
+def test_overview_draws_every_group_with_partial_and_missing_tables(tmp_path: Path) -> None:
+    assert sorted({n for names in SCENARIO_GROUPS.values() for n in names}) == sorted(SCENARIOS)
+    assert all("shape1" in names for names in SCENARIO_GROUPS.values())
+    loss = _bowl(40)[::4]
+    loss[3] = np.nan  # a failed run
+    _write_table_dir(tmp_path / "shape1", _table("shape1", loss, points=np.arange(0, 134, 4)))
+    _write_table_dir(tmp_path / "mu0.8", _table("mu0.8", 2 * loss[:10], points=np.arange(0, 40, 4)))
+    out = plot_overview(tmp_path, tmp_path / "landscapes.png")
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 20000
+    with pytest.raises(FileNotFoundError):
+        plot_overview(tmp_path / "absent", tmp_path / "x.png")
 
 
 def test_scenarios_and_features() -> None:

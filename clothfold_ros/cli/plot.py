@@ -1,4 +1,5 @@
-"""`clothfold plot`: a scenario table's loss landscape and best / worst final states (PNG)."""
+"""`clothfold plot`: a scenario table's loss landscape and best / worst final states, or the
+13 landscapes side by side (`--overview`) (PNG)."""
 from __future__ import annotations
 
 import argparse
@@ -14,12 +15,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_tables_option(p)
     p.add_argument("--out", type=Path, default=None, help="output folder (default: each table's own folder; for the "
                    f"tables of an install ./{TABLES_ROOT}/<scenario>/)")
+    p.add_argument("--overview", action="store_true", help="write only the 13 landscapes side by side, one row per "
+                   "study figure group, as landscapes.png in --out (default: the tables root)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..lookup.plot import plot_best_worst, plot_landscape
-    from ..lookup.sweep_dir import BEST_WORST_PNG, LANDSCAPE_PNG, table_dirs
+    from ..lookup.plot import plot_best_worst, plot_landscape, plot_overview
+    from ..lookup.sweep_dir import BEST_WORST_PNG, LANDSCAPE_PNG, OVERVIEW_PNG, table_dirs
 
     from ..nodes.resources import SOURCE_CHECKOUT
 
@@ -31,6 +34,13 @@ def run(args: argparse.Namespace) -> int:
     out_root = args.out
     if out_root is None and args.tables is None and not SOURCE_CHECKOUT:
         out_root = output_tables()  # never write into an install's share/
+    if args.overview:
+        try:
+            print(plot_overview(tables, (out_root or tables) / OVERVIEW_PNG))
+        except (FileNotFoundError, ValueError) as err:
+            print(f"clothfold plot: {err}", file=sys.stderr)
+            return 1
+        return 0
     names = args.scenarios or [d.name for d in table_dirs(tables)]
     if not names:
         print(f"clothfold plot: no tables under {tables}", file=sys.stderr)

@@ -8,8 +8,9 @@ import numpy as np
 
 from ..trajectory import fan
 from . import sweep_dir as layout
+from .scenario import SCENARIO_GROUPS
 from .select import smoothed_loss
-from .table import load_table
+from .table import Table, load_table
 
 
 def _plt():
@@ -30,33 +31,104 @@ def _save(fig, out: str | Path, dpi: int) -> Path:
     return out
 
 
+def _draw_fan(ax, t: Table | None, norm, legend: bool = False):
+    """One table's landscape on the polar axes `ax`: every fan point as a grey dot,
+    successful runs coloured by loss (mm) under `norm`, failed runs as red crosses, the
+    robust choice (smoothed best) circled. t None: the fan alone (no table). Returns the
+    scatter of the coloured points (None when there is none)."""
+    f = fan()
+    ax.scatter(np.radians(f[:, 1]), f[:, 0], s=4 if not legend else 6, c="0.8", label="fan point (not simulated)")
+    sc = None
+    if t is not None:
+        ok = t.success & np.isfinite(t.loss)
+        if ok.any():
+            sc = ax.scatter(np.radians(t.tilt_deg[ok]), t.height_ratio[ok], c=t.loss[ok] * 1e3, s=70 if legend else 14,
+                            cmap="viridis_r", norm=norm, edgecolors="k", linewidths=0.4 if legend else 0.2,
+                            label="simulated")
+            k = int(np.argmin(smoothed_loss(t)))
+            ax.scatter([np.radians(t.tilt_deg[k])], [t.height_ratio[k]], s=260 if legend else 70, facecolors="none",
+                       edgecolors="m", linewidths=1.6 if legend else 1.0, label="robust choice")
+        if (~ok).any():
+            ax.scatter(np.radians(t.tilt_deg[~ok]), t.height_ratio[~ok], marker="x", c="red", s=60 if legend else 18,
+                       linewidths=1.0, label="failed")
+    ax.set_thetamin(0)
+    ax.set_thetamax(60)
+    ax.set_rlim(0, 1.05)
+    if not legend:
+        ax.set_xticks(np.radians([0, 20, 40, 60]))
+        ax.set_yticks([0.5, 1.0])
+        ax.tick_params(labelsize=6, pad=1)
+    return sc
+
+
 def plot_landscape(table_dir: str | Path, out: str | Path) -> Path:
     """Loss landscape: radius = height ratio, angle = tilt, colour = loss (mm); failed
     runs as red crosses, not-simulated fan points as small grey dots, the chosen
     (smoothed-best) point circled."""
     plt = _plt()
     t = load_table(table_dir)
-    f = fan()
     fig, ax = plt.subplots(figsize=(6.2, 5.2), subplot_kw={"projection": "polar"})
-    ax.scatter(np.radians(f[:, 1]), f[:, 0], s=6, c="0.8", label="fan point (not simulated)")
-    ok = t.success & np.isfinite(t.loss)
-    sc = ax.scatter(np.radians(t.tilt_deg[ok]), t.height_ratio[ok], c=t.loss[ok] * 1e3, s=70, cmap="viridis_r",
-                    edgecolors="k", linewidths=0.4, label="simulated")
-    if (~ok).any():
-        ax.scatter(np.radians(t.tilt_deg[~ok]), t.height_ratio[~ok], marker="x", c="red", s=60, label="failed")
-    if ok.any():
+    sc = _draw_fan(ax, t, None, legend=True)
+    if sc is not None:
         fig.colorbar(sc, ax=ax, pad=0.1, label="loss (mm)")
-        k = int(np.argmin(smoothed_loss(t)))
-        ax.scatter([np.radians(t.tilt_deg[k])], [t.height_ratio[k]], s=260, facecolors="none", edgecolors="m",
-                   linewidths=1.6, label="robust choice")
-    ax.set_thetamin(0)
-    ax.set_thetamax(60)
-    ax.set_rlim(0, 1.05)
     ax.set_xlabel("height ratio (radius), tilt deg (angle)")
     res = t.provenance.get("resolution", {}).get("max_area_m2")
     ax.set_title(f"{t.name}: loss landscape (max_area {res} m$^2$)", fontsize=10)
     ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.05), fontsize=7, ncol=2)
     return _save(fig, out, 110)
+
+
+def _group_norm(tables: list[Table]):
+    """Colour scale shared by a group: min to the 95th percentile of its successful losses (mm)."""
+    from matplotlib.colors import Normalize
+
+    losses = np.concatenate([t.loss[t.success & np.isfinite(t.loss)] for t in tables] or [np.zeros(0)]) * 1e3
+    if not len(losses):
+        return Normalize(0.0, 1.0)
+    lo, hi = float(losses.min()), float(np.percentile(losses, 95))
+    return Normalize(lo, hi if hi > lo else lo + 1e-3)
+
+
+def plot_overview(tables_root: str | Path, out: str | Path) -> Path:
+    """The 13 scenario landscapes side by side, one row per figure group of the study
+    (`scenario.SCENARIO_GROUPS`: each row varies one factor against the default, shape1),
+    with one colour scale per row (its losses' minimum to 95th percentile; higher losses
+    take the darkest colour). Each panel is titled with its scenario and how many of the
+    134 fan points it holds; a scenario without a table shows the bare fan."""
+    plt = _plt()
+    root = Path(tables_root)
+    if not root.is_dir():
+        raise FileNotFoundError(f"lookup table directory {root} does not exist")
+    available = {p.name: load_table(p) for p in layout.table_dirs(root)}
+    rows = list(SCENARIO_GROUPS.items())
+    ncols = max(len(names) for _, names in rows)
+    fig, axes = plt.subplots(len(rows), ncols, figsize=(3.0 * ncols + 1.2, 2.7 * len(rows)),
+                             subplot_kw={"projection": "polar"}, squeeze=False)
+    n_fan = len(fan())
+    res = sorted({str(t.provenance.get("resolution", {}).get("max_area_m2")) for t in available.values()})
+    for r, (group, names) in enumerate(rows):
+        tables = [available[n] for n in names if n in available]
+        norm = _group_norm(tables)
+        sc = None
+        for c in range(ncols):
+            ax = axes[r, c]
+            if c >= len(names):
+                ax.set_visible(False)
+                continue
+            t = available.get(names[c])
+            sc = _draw_fan(ax, t, norm) or sc
+            label = f"{names[c]} (default)" if names[c] == "shape1" else names[c]
+            held = f"{len(t.point)}/{n_fan} points" if t is not None else "no table"
+            ax.set_title(f"{label}\n{held}", fontsize=8, pad=2)
+        if sc is None:
+            from matplotlib.cm import ScalarMappable
+            sc = ScalarMappable(norm=norm, cmap="viridis_r")
+        cb = fig.colorbar(sc, ax=list(axes[r, :len(names)]), pad=0.02, shrink=0.85, extend="max")
+        cb.set_label(f"{group}: loss (mm)", fontsize=8)
+        cb.ax.tick_params(labelsize=7)
+    fig.suptitle(f"Loss landscapes (radius: height ratio, angle: tilt deg; red x: failed; circle: robust choice; "
+                 f"max area {', '.join(res) or '-'} m$^2$)", fontsize=10)
+    return _save(fig, out, 90)
 
 
 def plot_best_worst(table_dir: str | Path, out: str | Path) -> Path:

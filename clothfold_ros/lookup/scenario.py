@@ -81,6 +81,17 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
 )}
 
 
+#: The study's figure groups: each varies one factor against the default scenario (shape1),
+#: which therefore appears in every group; together they hold all 13 scenarios.
+SCENARIO_GROUPS: dict[str, tuple[str, ...]] = {
+    "shirt shape": ("shape1", "shape2", "shape3"),
+    "thickness": ("thin_cotton", "shape1", "thick_cotton"),
+    "friction": ("mu0.2", "shape1", "mu0.8"),
+    "motion time": ("T1", "T2", "shape1", "T8"),
+    "fold sequence": ("shape1", "both_sleeves", "both_sides", "middle"),
+}
+
+
 def scenario(name: str) -> Scenario:
     """A scenario by name, with a clear error for unknown names."""
     try:

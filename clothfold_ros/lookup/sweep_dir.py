@@ -12,7 +12,7 @@ A sweep of one scenario and the lookup table made from it share one directory
 | `finals/pNNN.npy` | sweep, before its runs.jsonl line | final vertices of fan point NNN, float32, m |
 | `finals.npz` | `pack_finals` | `triangles`, `start`, `target` and every `pNNN` (replaces finals/) |
 | `table.csv`, `provenance.json` | `table.write_table` | the tidy table and its provenance |
-| `landscape.png`, `best_worst.png` | `plot` | figures |
+| `landscape.png`, `best_worst.png` | `plot` | figures (`../landscapes.png`: `plot --overview`, all tables) |
 | `.lock` | sweep, while running | owner pid |
 
 Everything else (the sweep engine, the table format, plots) reads and writes these
@@ -41,6 +41,7 @@ TABLE = "table.csv"
 PROVENANCE = "provenance.json"
 LANDSCAPE_PNG = "landscape.png"
 BEST_WORST_PNG = "best_worst.png"
+OVERVIEW_PNG = "landscapes.png"  # in the tables root: all scenarios side by side
 LOCK = ".lock"
 STUDY_END_ANGLE_DEG = 170.0  # the end angle of the study's simulations (docs/method.md)
 LEGACY_END_ANGLE_DEG = 175.0  # sweeps whose settings.json predates the field were made with this
