@@ -11,7 +11,7 @@ import pytest
 
 from clothfold_ros.lookup.planner_selector import Selection, TableSelector
 from clothfold_ros.lookup.plot import plot_best_worst, plot_landscape, plot_overview
-from clothfold_ros.lookup.regret import evaluate, mean_regret
+from clothfold_ros.lookup.regret import evaluate, mean_regret, middle_of_fan, success_rate, summary, worst_regret
 from clothfold_ros.lookup.scenario import (SCENARIO_GROUPS, SCENARIOS, definition_features, features, flat_keypoints,
                                            generation_order, normalized_distance)
 from clothfold_ros.lookup.select import choose, smoothed_loss
@@ -78,7 +78,7 @@ def test_regret_arithmetic() -> None:
     f1, f2 = definition_features(SCENARIOS["shape1"]), definition_features(SCENARIOS["mu0.2"])
     l1, l2 = _bowl(50), _bowl(80)
     rows = {r.scenario: r for r in evaluate({"shape1": _table("shape1", l1, f1), "mu0.2": _table("mu0.2", l2, f2)},
-                                            robust=False)}
+                                            "argmin")}
     # each held-out scenario gets the other's optimum, evaluated in its own table
     assert rows["shape1"].point == 80 and rows["mu0.2"].point == 50
     assert rows["shape1"].regret == pytest.approx(l1[80] - l1.min())
@@ -87,9 +87,34 @@ def test_regret_arithmetic() -> None:
     l2f = l2.copy()
     l2f[50] = np.nan  # the chosen point failed in the held-out table: counted as its worst loss, flagged
     rows = {r.scenario: r for r in evaluate({"shape1": _table("shape1", l1, f1), "mu0.2": _table("mu0.2", l2f, f2)},
-                                            robust=False)}
+                                            "argmin")}
     assert rows["mu0.2"].flag == "failed in held-out"
     assert rows["mu0.2"].regret == pytest.approx(np.nanmax(l2f) - np.nanmin(l2f))
+
+
+def test_static_and_default_rules_and_summary() -> None:
+    mid = middle_of_fan()
+    assert 0.45 < FAN[mid, 0] < 0.65 and FAN[mid, 1] == pytest.approx(30.0)
+    f1, f2, f3 = (definition_features(SCENARIOS[n]) for n in ("shape1", "mu0.2", "T8"))
+    l1, l2, l3 = _bowl(50, 0.003, 0.02), _bowl(80, 0.004, 0.02), _bowl(mid, 0.005, 0.2)
+    l3[50] = np.nan  # the default's best failed in T8
+    tables = {"shape1": _table("shape1", l1, f1), "mu0.2": _table("mu0.2", l2, f2), "T8": _table("T8", l3, f3)}
+    static = {r.scenario: r for r in evaluate(tables, "static")}
+    assert {r.point for r in static.values()} == {mid} and static["T8"].regret == pytest.approx(0.0)
+    assert static["shape1"].regret == pytest.approx(l1[mid] - l1.min())
+    default = {r.scenario: r for r in evaluate(tables, "default_best")}
+    assert default["shape1"].flag.startswith("n/a") and math.isnan(default["shape1"].regret)
+    assert default["mu0.2"].point == 50 and default["mu0.2"].regret == pytest.approx(l2[50] - l2.min())
+    assert default["T8"].flag == "failed in held-out" and default["T8"].regret == pytest.approx(np.nanmax(l3) - l3[mid])
+    assert worst_regret(list(default.values())) == pytest.approx(np.nanmax(l3) - l3[mid])
+    # successes: completed and within 2 cm (T8's penalty loss is far beyond it)
+    assert success_rate(list(default.values())) == (1, 2)
+    good, n = success_rate(list(static.values()))
+    assert n == 3 and good == sum(t.loss[mid] <= 0.02 for t in tables.values())
+    text = summary({"static": list(static.values()), "default_best": list(default.values())})
+    assert "middle of the fan" in text and "1 of 2 (50 %)" in text and text.count("\n") == 3
+    with pytest.raises(ValueError):
+        evaluate(tables, "oracle")
 
 
 def _write_table_dir(d: Path, t: Table, with_finals: bool = False) -> None:

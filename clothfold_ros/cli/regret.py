@@ -1,4 +1,4 @@
-"""`clothfold regret`: leave-one-scenario-out evaluation of the table selection."""
+"""`clothfold regret`: leave-one-scenario-out regret of the selection rules (lookup/regret.py)."""
 from __future__ import annotations
 
 import argparse
@@ -16,13 +16,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..lookup.regret import evaluate, report
+    from ..lookup.regret import RULES, evaluate, report, summary
     from ..lookup.table import load_tables
 
     try:
         tables = load_tables(tables_arg(args))
-        text = (report(evaluate(tables, robust=True), "robust (neighbourhood-smoothed) selection") + "\n\n"
-                + report(evaluate(tables, robust=False), "raw argmin of the nearest table (comparison)"))
+        rows = {name: evaluate(tables, name) for name in RULES}
+        text = "\n\n".join([summary(rows)] + [report(r, RULES[name][1]) for name, r in rows.items()])
     except (FileNotFoundError, ValueError, RuntimeError) as err:
         print(f"clothfold regret: {err}", file=sys.stderr)
         return 2

@@ -1,21 +1,27 @@
-"""Leave-one-scenario-out regret of the selection rule.
+"""Leave-one-scenario-out regret of trajectory selection rules.
 
-For each held-out scenario s: choose a fan point from the other tables using s's
-features, look its loss up in s's own table, and report
-regret(s) = loss_s(chosen) - min successful loss_s  (m).
-A chosen point that failed in s counts as s's failure penalty (select.failure_penalty)
-and is flagged; a chosen point s did not simulate gives NaN and is flagged.
+For each held-out scenario s a rule picks a fan point without s's table, the point's loss
+is looked up in s's own table, and regret(s) = loss_s(chosen) - min successful loss_s (m).
+A chosen point that failed in s counts as s's failure penalty (select.failure_penalty) and
+is flagged; a chosen point s did not simulate gives NaN and is flagged. The rules
+(`RULES`): the planner's robust rule, the raw argmin of the nearest table, one static
+trajectory for everything (the fan point at the middle of the fan) and the default
+table's best point used everywhere.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 
-from .select import choose, failure_penalty
+from ..trajectory import fan
+from .select import choose, failure_penalty, fan_xy
 from .table import Table
+
+DEFAULT_SCENARIO = "shape1"
+FAILED_FOLD_LOSS = 0.02  # m: a sleeve fold ending farther than 2 cm from its target failed (method, loss)
 
 
 @dataclass(frozen=True)
@@ -30,27 +36,80 @@ class RegretRow:
     chosen_loss: float
     best_loss: float
     regret: float
-    flag: str  # '' | 'failed in held-out' | 'not simulated in held-out' | 'no success in held-out'
+    flag: str  # '' | 'failed in held-out' | 'not simulated in held-out' | 'no success in held-out' | 'n/a: ...'
 
 
-def evaluate(tables: Mapping[str, Table], robust: bool = True) -> list[RegretRow]:
-    """Leave-one-scenario-out regret rows, one per table (needs >= 2 tables)."""
+def middle_of_fan() -> int:
+    """The fan point nearest (in the fan layout) to the middle of the fan: height ratio
+    halfway between 0.1 and 1.0, tilt 30 deg."""
+    f = fan()
+    xy = fan_xy(f[:, 0], f[:, 1])
+    mid = fan_xy(np.array([0.5 * (f[:, 0].min() + f[:, 0].max())]), np.array([0.5 * (f[:, 1].min() + f[:, 1].max())]))
+    return int(np.argmin(np.linalg.norm(xy - mid, axis=1)))
+
+
+Rule = Callable[[Mapping[str, Table], str], "tuple[int, str] | None"]
+
+
+def _robust(tables: Mapping[str, Table], held: str) -> tuple[int, str]:
+    c = choose(tables, tables[held].features, exclude=(held,), robust=True)
+    return c.point, "+".join(c.scenarios)
+
+
+def _argmin(tables: Mapping[str, Table], held: str) -> tuple[int, str]:
+    c = choose(tables, tables[held].features, exclude=(held,), robust=False)
+    return c.point, "+".join(c.scenarios)
+
+
+def _static(tables: Mapping[str, Table], held: str) -> tuple[int, str]:
+    return middle_of_fan(), "(fan middle)"
+
+
+def _default_best(tables: Mapping[str, Table], held: str) -> tuple[int, str] | None:
+    """The default table's best successful point; None when the default is held out or absent."""
+    t = tables.get(DEFAULT_SCENARIO)
+    if held == DEFAULT_SCENARIO or t is None or not t.success.any():
+        return None
+    ok = np.flatnonzero(t.success & np.isfinite(t.loss))
+    return int(t.point[ok[np.argmin(t.loss[ok])]]), DEFAULT_SCENARIO
+
+
+#: name -> (rule, description). A rule maps (tables, held-out name) to (fan point, source).
+RULES: dict[str, tuple[Rule, str]] = {
+    "robust": (_robust, "robust rule (neighbourhood-smoothed, nearest tables; the planner's)"),
+    "argmin": (_argmin, "raw argmin of the nearest table"),
+    "static": (_static, "one static trajectory: the middle of the fan"),
+    "default_best": (_default_best, "the default table's best point everywhere"),
+}
+
+
+def evaluate(tables: Mapping[str, Table], rule: str = "robust") -> list[RegretRow]:
+    """Leave-one-scenario-out regret rows of `rule` (a key of RULES), one per table (needs >= 2 tables)."""
     if len(tables) < 2:
         raise ValueError("leave-one-scenario-out needs at least two tables")
+    if rule not in RULES:
+        raise ValueError(f"unknown rule {rule!r} ({', '.join(RULES)})")
+    pick = RULES[rule][0]
+    f = fan()
     rows = []
     for name, held in tables.items():
-        c = choose(tables, held.features, exclude=(name,), robust=robust)
         ok = held.success & np.isfinite(held.loss)
         best = float(held.loss[ok].min()) if ok.any() else math.nan
+        picked = pick(tables, name)
+        if picked is None:
+            rows.append(RegretRow(name, "-", -1, math.nan, math.nan, math.nan, best, math.nan,
+                                  "n/a: the rule's own table is held out"))
+            continue
+        point, source = picked
         flag = "" if ok.any() else "no success in held-out"
         try:
-            loss, success = held.loss_at(c.point)
+            loss, success = held.loss_at(point)
             if not success:
                 loss, flag = failure_penalty(held), flag or "failed in held-out"
         except KeyError:
             loss, flag = math.nan, "not simulated in held-out"
-        rows.append(RegretRow(name, "+".join(c.scenarios), c.point, c.height_ratio, c.tilt_deg, loss, best,
-                              loss - best, flag))
+        rows.append(RegretRow(name, source, point, float(f[point, 0]), float(f[point, 1]), loss, best, loss - best,
+                              flag))
     return rows
 
 
@@ -60,13 +119,45 @@ def mean_regret(rows: list[RegretRow]) -> float:
     return float(np.mean(r)) if r else math.nan
 
 
+def worst_regret(rows: list[RegretRow]) -> float:
+    """Largest regret (m) over rows with a finite regret (NaN if none)."""
+    r = [x.regret for x in rows if math.isfinite(x.regret)]
+    return float(np.max(r)) if r else math.nan
+
+
+def success_rate(rows: list[RegretRow]) -> tuple[int, int]:
+    """(successes, evaluated): among held-out scenarios whose table holds the chosen point,
+    how many folds completed within FAILED_FOLD_LOSS of the target."""
+    evaluated = [r for r in rows if math.isfinite(r.chosen_loss)]
+    good = sum(r.flag == "" and r.chosen_loss <= FAILED_FOLD_LOSS for r in evaluated)
+    return good, len(evaluated)
+
+
+def _mm(x: float) -> str:
+    return f"{x * 1e3:.1f}" if math.isfinite(x) else "-"
+
+
 def report(rows: list[RegretRow], title: str = "regret") -> str:
     """A Markdown table of regret rows (mm) with the mean."""
-    lines = [f"| held out | chosen from | point (h, tilt) | chosen loss mm | best loss mm | regret mm | note |",
+    lines = ["| held out | chosen from | point (h, tilt) | chosen loss mm | best loss mm | regret mm | note |",
              "|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r.scenario} | {r.chosen_from} | {r.point} ({r.height_ratio:.3f}, {r.tilt_deg:.1f}) | "
-                     f"{r.chosen_loss * 1e3:.1f} | {r.best_loss * 1e3:.1f} | {r.regret * 1e3:.1f} | {r.flag} |")
+        where = f"{r.point} ({r.height_ratio:.3f}, {r.tilt_deg:.1f})" if r.point >= 0 else "-"
+        lines.append(f"| {r.scenario} | {r.chosen_from} | {where} | {_mm(r.chosen_loss)} | {_mm(r.best_loss)} | "
+                     f"{_mm(r.regret)} | {r.flag} |")
     n = sum(math.isfinite(r.regret) for r in rows)
-    lines.append(f"\n{title}: mean regret {mean_regret(rows) * 1e3:.1f} mm over {n} of {len(rows)} scenarios")
+    lines.append(f"\n{title}: mean regret {_mm(mean_regret(rows))} mm over {n} of {len(rows)} scenarios")
+    return "\n".join(lines)
+
+
+def summary(rows_by_rule: Mapping[str, list[RegretRow]]) -> str:
+    """A Markdown table, one line per rule: mean and worst regret (mm) and success rate."""
+    lines = ["| rule | scenarios with a regret | mean regret mm | worst regret mm | success (completed, <= 2 cm) |",
+             "|---|---|---|---|---|"]
+    for name, rows in rows_by_rule.items():
+        good, n_eval = success_rate(rows)
+        n = sum(math.isfinite(r.regret) for r in rows)
+        lines.append(f"| {RULES[name][1] if name in RULES else name} | {n} of {len(rows)} | "
+                     f"{_mm(mean_regret(rows))} | {_mm(worst_regret(rows))} | "
+                     f"{good} of {n_eval}" + (f" ({100 * good / n_eval:.0f} %)" if n_eval else "") + " |")
     return "\n".join(lines)
