@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 
 from clothfold_ros.sim import bending, membrane
@@ -265,3 +266,42 @@ def test_solver_and_settings_reject_bad_block_rhs_and_thread_counts():
             SimConfig(**bad)
     with pytest.raises(ValueError, match="pattern_growth_iterations"):
         SimConfig(pattern_growth_iterations=0)
+
+
+def test_lagged_friction_kernels_equal_ipctk_friction_potential():
+    """The numba friction (sim/friction.py) on a two-layer contact state (edge-edge,
+    face-vertex and cloth-table contacts) gives ipctk's FrictionPotential energy, gradient
+    and Hessian to rounding, in the smoothed (|u_t| < eps_v dt) and the sliding regime."""
+    import ipctk
+
+    from clothfold_ros.materials import MATERIALS
+    from clothfold_ros.sim import ClothSimulator
+    from clothfold_ros.sim.friction import scatter_stencil_hessians
+
+    cotton = MATERIALS["cotton"]
+    t = cotton.thickness
+    v, f = rectangle(0.05, 0.05, 6e-5, 2.5 * t)
+    upper = v.copy()
+    upper[:, 2] += 3 * t
+    upper[:, 0] += 0.01
+    sim = ClothSimulator(np.vstack([v, upper]), np.vstack([f, f + len(v)]), cotton, 0.5)
+    for _ in range(3):
+        sim.step()
+    c = sim.contact
+    c.lag_friction(sim.x)
+    kinds = {n: len(getattr(c.tangential, n)) for n in ("ee_collisions", "fv_collisions")}
+    assert min(kinds.values()) > 10 and len(c.friction) == len(c.tangential) > sum(kinds.values())  # + table
+    reference = ipctk.FrictionPotential(c.friction.eps)
+    rng = np.random.default_rng(5)
+    pat = HessianPattern(sim.x.size, [element_dofs(f)])
+    slots = pat.stencil_block_slots(c.friction.ids)
+    for scale in (1e-6, 1e-3):  # below and beyond eps = eps_v dt = 4e-5 m
+        u = rng.normal(size=sim.x.shape) * scale
+        uf = np.asfortranarray(u)
+        assert c.friction.energy(u) == pytest.approx(reference(c.tangential, c.mesh, uf), rel=1e-12)
+        g_ref = reference.gradient(c.tangential, c.mesh, uf)
+        assert np.abs(c.friction.gradient(u) - g_ref).max() <= 1e-12 * np.abs(g_ref).max()
+        h_ref = reference.hessian(c.tangential, c.mesh, uf, ipctk.PSDProjectionMethod.CLAMP).toarray()
+        data = np.zeros(9 * pat.nnz)
+        scatter_stencil_hessians(data, slots, c.friction.hessians(u))
+        assert np.abs(_full(pat, data) - h_ref).max() <= 1e-12 * np.abs(h_ref).max()

@@ -1,5 +1,8 @@
 """IPC contact: log barrier, lagged smoothed Coulomb friction and CCD, via ipctk.
 
+The friction's per-iteration derivatives come from `friction.LaggedFriction` (numba, on
+arrays read from ipctk's tangential collisions once per step).
+
 Self-contact of the cloth and contact with the table (the plane z = 0, normal +z).
 Mid-surfaces keep at least `xi` apart (ipctk's dmin) and the barrier acts within `dhat`
 beyond that. Energies follow the incremental potential scaled like 1/2 |x - x_hat|_M^2,
@@ -12,6 +15,8 @@ from contextlib import contextmanager
 import ipctk
 import numpy as np
 import scipy.sparse as sp
+
+from .friction import LaggedFriction, table_normal_forces
 
 PSD = ipctk.PSDProjectionMethod.CLAMP
 
@@ -47,7 +52,7 @@ class ContactModel:
         self.ccd_fraction = float(ccd_fraction)
         self.friction_coefficient = float(friction)  # Coulomb mu, every contact
         self.dt = float(dt)
-        self.friction_potential = ipctk.FrictionPotential(eps_v * dt)  # acts on displacements
+        self.friction = LaggedFriction(eps_v * dt)  # the lagged contacts as arrays, evaluated per iteration
         self.narrow_phase = ipctk.AdditiveCCD()
         self.kappa = 0.0
         self.kappa_max = 0.0
@@ -143,30 +148,28 @@ class ContactModel:
         self.tangential = ipctk.TangentialCollisions()
         if len(col) and self.friction_coefficient > 0:
             self.tangential.build(self.mesh, xf, col, self.barrier, self.friction_coefficient)
+        near, forces = table_normal_forces(x[:, 2], self.kappa, self.xi, self.dhat)
+        if self.friction_coefficient <= 0:
+            near, forces = near[:0], forces[:0]
+        self.friction.lag(self.tangential, self.mesh, self.friction_coefficient, near, forces)
 
     # -- potentials ---------------------------------------------------------------------
     def energy(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> float:
         e = self.barrier(col, self.mesh, np.asfortranarray(x)) if len(col) else 0.0
-        if len(self.tangential):
-            e += self.friction_potential(self.tangential, self.mesh, np.asfortranarray(u))
-        return float(e)
+        return float(e) + self.friction.energy(u)
 
     def gradient(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         g = np.zeros(x.size)
         if len(col):
             g += self.barrier.gradient(col, self.mesh, np.asfortranarray(x))
-        if len(self.tangential):
-            g += self.friction_potential.gradient(self.tangential, self.mesh, np.asfortranarray(u))
-        return g
+        return g + self.friction.gradient(u)
 
-    def hessian(self, col: ipctk.NormalCollisions, x: np.ndarray, u: np.ndarray) -> sp.spmatrix | None:
-        h = None
-        if len(col):
-            h = self.barrier.hessian(col, self.mesh, np.asfortranarray(x), self.psd)
-        if len(self.tangential):
-            hf = self.friction_potential.hessian(self.tangential, self.mesh, np.asfortranarray(u), self.psd)
-            h = hf if h is None else h + hf
-        return h
+    def hessian(self, col: ipctk.NormalCollisions, x: np.ndarray) -> sp.spmatrix | None:
+        """The barrier's Hessian, projected per contact (None: no contact); the friction's
+        per-contact Hessians come from `friction.hessians`."""
+        if not len(col):
+            return None
+        return self.barrier.hessian(col, self.mesh, np.asfortranarray(x), self.psd)
 
     # -- geometry queries -------------------------------------------------------------------
     def min_distance(self, col: ipctk.NormalCollisions, x: np.ndarray) -> float:

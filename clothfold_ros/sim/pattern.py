@@ -224,6 +224,24 @@ class HessianPattern:
         return (np.concatenate([BLOCK * BLOCK * slots[found] + offset[found], self.diag_slots]),
                 np.concatenate([vals[found], np.repeat(bump, BLOCK)]), False)
 
+    def stencil_block_slots(self, ids: np.ndarray) -> np.ndarray:
+        """Block slots (n, 4, 4) of the vertex pairs of contact stencils `ids` (n, 4) (-1:
+        padding): the slot of block (ids[a], ids[b]) where that block is stored (ids[a] <
+        ids[b], or a == b), -1 elsewhere. Missing blocks are added (the pattern grows); all
+        count as used in this solve."""
+        ids = np.asarray(ids, dtype=np.int64)
+        va, vb = ids[:, :, None], ids[:, None, :]
+        stored = (va >= 0) & (vb >= 0) & ((va < vb) | np.eye(ids.shape[1], dtype=bool))
+        keys = (va * self.nv + vb)[stored]
+        slots, missing = self._find(keys)
+        if missing.any():
+            self._insert(self._with_neighbours(np.unique(keys[missing])))
+            slots = np.searchsorted(self.keys, keys)
+        self.last_used[slots] = self.solves
+        out = np.full(stored.shape, -1, dtype=np.int64)
+        out[stored] = slots
+        return out
+
     def grow_pending(self) -> bool:
         """Add the blocks deferred by contact_slots(grow=False); True if the pattern grew."""
         if not len(self.pending):

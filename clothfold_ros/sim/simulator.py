@@ -22,6 +22,7 @@ from ..pose import Pose
 from . import bending, membrane
 from .config import SimConfig
 from .contact import ContactModel
+from .friction import scatter_stencil_hessians
 from .grasp import Grasp, grasp
 from .linear_solver import spd_solver
 from .pattern import HessianPattern, element_dofs, scatter_gradient
@@ -109,6 +110,8 @@ class ClothSimulator:
                                        cfg.pattern_keep_solves, cfg.pattern_prune_fraction)
         self._pattern_version = -1  # pattern version the solver has analysed
         self.fallback_directions = 0  # Newton steps that fell back to the scaled gradient
+        self._friction_key = None  # (friction contacts, pattern version) of _friction_cache
+        self._friction_cache = np.zeros((0, 4, 4), dtype=np.int64)
         xi = material.thickness if cfg.xi is None else cfg.xi
         dhat = material.thickness if cfg.dhat is None else cfg.dhat
         self.contact = ContactModel(rest, tri, xi, dhat, friction, cfg.eps_v, cfg.dt, cfg.broad_phase_reuse,
@@ -308,6 +311,14 @@ class ClothSimulator:
             p = -grad / d
         return p.reshape(-1, 3)
 
+    def _friction_slots(self, friction) -> np.ndarray:
+        """Block slots of the lagged friction contacts' stencils in the current pattern
+        (recomputed when the contacts or the pattern changed; missing blocks are added)."""
+        if self._friction_key != (friction.generation, self._pattern.version):
+            self._friction_cache = self._pattern.stencil_block_slots(friction.ids)  # may grow: a new version
+            self._friction_key = (friction.generation, self._pattern.version)
+        return self._friction_cache
+
     def _newton(self, x, x_prev, x_hat, phases, when, pull=None, col=None):
         """Projected Newton on all vertices; returns (x, iterations, halvings, residual, collisions).
 
@@ -341,15 +352,21 @@ class ClothSimulator:
                 grad += np.repeat(pull[0], 3) * (x - pull[1]).ravel()
             grad += self.contact.gradient(col, x, u)
             contact = None
-            hc = self.contact.hessian(col, x, u)
+            hc = self.contact.hessian(col, x)
             if it == 1:  # prune stale contact entries, add the ones deferred in the last solve
                 self._pattern.begin_solve()
+            friction = self.contact.friction
+            if len(friction):  # friction's blocks first: they may grow the pattern
+                self._friction_slots(friction)
             if hc is not None:
                 slots, vals, _ = self._pattern.contact_slots(hc, grow=it <= cfg.pattern_growth_iterations)
                 contact = (slots, vals)
+            friction_hessians = friction.hessians(u) if len(friction) else None
             phases["contact_derivatives"] += time.perf_counter() - tic
             tic = time.perf_counter()
             data = self._pattern.assemble([hm, hb], h2, diag, contact)
+            if friction_hessians is not None:
+                scatter_stencil_hessians(data, self._friction_slots(friction), friction_hessians)
             phases["assembly"] += time.perf_counter() - tic
             tic = time.perf_counter()
             p = self._direction(data, grad, when)

@@ -1,0 +1,178 @@
+"""Lagged smoothed Coulomb friction, evaluated by numba kernels on arrays read once per step.
+
+Friction is lagged: at the start of a step ipctk's `TangentialCollisions` fix, for every
+contact, its stencil's vertices, the tangent basis T (3x2) and relative-velocity Jacobian
+G (3 x 3k) at the contact's closest point, its normal force lambda and weight w. Contacts
+with the table (the plane z = 0) are not exposed by ipctk's Python API; their stencil is
+one vertex with T the xy-plane and lambda the table barrier's normal force, computed here
+the same way (`table_normal_forces`). Every Newton iteration then needs the friction
+potential, gradient and Hessian for the displacement u since the step's start, which this
+module evaluates per contact from P = T^T G (2 x 12, zero-padded) and c = w mu lambda:
+
+    tau = P u_stencil,  y = |tau|,  D = c f0(y),  grad D = c f1(y)/y P^T tau,
+    hess D = c P^T (f1/y I + (f1' - f1/y) / y^2 tau tau^T) P,
+
+with IPC's smoothed f0 (y^2/eps - y^3/(3 eps^2) + eps/3 below eps = eps_v dt, y beyond).
+The 2x2 middle matrix has eigenvalues f1' >= 0 and f1/y > 0, so the Hessian is positive
+semi-definite without projection. Units: SI; energies in the incremental potential's units.
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+STENCIL = 4  # vertices per contact stencil (fewer are padded with -1)
+_CLOTH_CONTACTS = ("vv_collisions", "ev_collisions", "ee_collisions", "fv_collisions")
+
+
+def clamped_log_barrier_derivative(s: np.ndarray, s_hat: float) -> np.ndarray:
+    """d/ds of -(s - s_hat)^2 ln(s / s_hat) for 0 < s < s_hat, 0 beyond (ipctk's ClampedLogBarrier)."""
+    s = np.asarray(s, dtype=float)
+    out = np.zeros_like(s)
+    m = (s > 0) & (s < s_hat)
+    out[m] = (s_hat - s[m]) * (2.0 * np.log(s[m] / s_hat) - s_hat / s[m] + 1.0)
+    return out
+
+
+def table_normal_forces(z: np.ndarray, stiffness: float, xi: float, dhat: float) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices within the table barrier's range at heights z (N,) (m) and their normal forces.
+
+    ipctk's barrier acts on the squared distance beyond the offset, kappa B(z^2 - xi^2) with
+    range 2 xi dhat + dhat^2, so lambda = -kappa dB/dz = -2 z kappa B'.
+    """
+    z = np.asarray(z, dtype=float)
+    near = np.flatnonzero((z > xi) & (z < xi + dhat))
+    zn = z[near]
+    return near, -2.0 * zn * stiffness * clamped_log_barrier_derivative(zn * zn - xi * xi, 2.0 * xi * dhat + dhat * dhat)
+
+
+class LaggedFriction:
+    """The friction contacts of one step as arrays: stencil vertex ids (n, 4), P (n, 2, 12)
+    and c = w mu lambda (n,)."""
+
+    def __init__(self, eps_u: float) -> None:
+        self.eps = float(eps_u)  # m: slip displacement under which friction is smoothed (eps_v dt)
+        self.ids = np.full((0, STENCIL), -1, dtype=np.int64)
+        self.P = np.zeros((0, 2, 3 * STENCIL))
+        self.c = np.zeros(0)
+        self.generation = 0  # counts lags: a new set of contacts
+
+    def __len__(self) -> int:
+        return len(self.c)
+
+    def lag(self, tangential, mesh, mu: float, table_vertices: np.ndarray, table_forces: np.ndarray) -> None:
+        """Read ipctk's cloth-cloth tangential collisions (built at the lag positions with the
+        Coulomb coefficient mu) and add the table contacts of `table_vertices` with normal
+        forces `table_forces`. About 15 us per contact (ipctk's Python accessors), once a step."""
+        edges, faces = mesh.edges, mesh.faces
+        contacts = [cc for name in _CLOTH_CONTACTS for cc in getattr(tangential, name)]
+        n_cloth, n_table = len(contacts), len(table_vertices)
+        ids = np.full((n_cloth + n_table, STENCIL), -1, dtype=np.int64)
+        P = np.zeros((n_cloth + n_table, 2, 3 * STENCIL))
+        c = np.empty(n_cloth + n_table)
+        for i, cc in enumerate(contacts):
+            v = np.asarray(cc.vertex_ids(edges, faces))
+            k = int(np.count_nonzero(v >= 0))
+            ids[i, :k] = v[:k]
+            P[i, :, :3 * k] = np.asarray(cc.tangent_basis).T @ cc.relative_velocity_jacobian()
+            c[i] = cc.weight * cc.normal_force_magnitude  # times mu below (ipctk's mu_s = mu_k = mu)
+        ids[n_cloth:, 0] = table_vertices
+        P[n_cloth:, 0, 0] = P[n_cloth:, 1, 1] = 1.0  # tangent basis of the table: x and y
+        c[n_cloth:] = np.asarray(table_forces, dtype=float)
+        self.ids, self.P, self.c = ids, P, mu * c
+        self.generation += 1
+
+    def energy(self, u: np.ndarray) -> float:
+        """Friction potential for displacements u (N, 3) since the lag."""
+        return float(_derivatives(u, self.ids, self.P, self.c, self.eps, 0)[0]) if len(self) else 0.0
+
+    def gradient(self, u: np.ndarray) -> np.ndarray:
+        """Gradient (3N,) for displacements u (N, 3)."""
+        g = np.zeros(u.size)
+        if len(self):
+            _, grads, _ = _derivatives(u, self.ids, self.P, self.c, self.eps, 1)
+            _scatter_gradient(g, self.ids, grads)
+        return g
+
+    def hessians(self, u: np.ndarray) -> np.ndarray:
+        """Per-contact Hessians (n, 12, 12) on the stencils' DOFs (vertex-major xyz)."""
+        return _derivatives(u, self.ids, self.P, self.c, self.eps, 2)[2]
+
+
+@nb.njit(cache=True)
+def _derivatives(u, ids, P, c, eps, order):
+    """Energy, per-contact gradients (n, 12) (order >= 1) and Hessians (n, 12, 12) (order 2)."""
+    n = ids.shape[0]
+    grads = np.zeros((n if order >= 1 else 0, 12))
+    hess = np.zeros((n if order >= 2 else 0, 12, 12))
+    energy = 0.0
+    w = np.empty((2, 12))
+    for i in range(n):
+        t0 = 0.0
+        t1 = 0.0
+        for a in range(4):
+            v = ids[i, a]
+            if v < 0:
+                continue
+            for r in range(3):
+                t0 += P[i, 0, 3 * a + r] * u[v, r]
+                t1 += P[i, 1, 3 * a + r] * u[v, r]
+        y = np.sqrt(t0 * t0 + t1 * t1)
+        if y < eps:
+            f0 = -y * y * y / (3.0 * eps * eps) + y * y / eps + eps / 3.0
+            f1y = 2.0 / eps - y / (eps * eps)
+            rank = -1.0 / (eps * eps * y) if y > 0.0 else 0.0
+        else:
+            f0 = y
+            f1y = 1.0 / y
+            rank = -1.0 / (y * y * y)
+        ci = c[i]
+        energy += ci * f0
+        if order >= 1:
+            g0 = ci * f1y * t0
+            g1 = ci * f1y * t1
+            for k in range(12):
+                grads[i, k] = P[i, 0, k] * g0 + P[i, 1, k] * g1
+        if order >= 2:
+            m00 = ci * (f1y + rank * t0 * t0)
+            m01 = ci * rank * t0 * t1
+            m11 = ci * (f1y + rank * t1 * t1)
+            for k in range(12):
+                w[0, k] = m00 * P[i, 0, k] + m01 * P[i, 1, k]
+                w[1, k] = m01 * P[i, 0, k] + m11 * P[i, 1, k]
+            for k in range(12):
+                pk0 = P[i, 0, k]
+                pk1 = P[i, 1, k]
+                if pk0 == 0.0 and pk1 == 0.0:
+                    continue
+                for l in range(12):
+                    hess[i, k, l] = pk0 * w[0, l] + pk1 * w[1, l]
+    return energy, grads, hess
+
+
+@nb.njit(cache=True)
+def _scatter_gradient(g, ids, grads):
+    """g[3 v + r] += grads[i, 3 a + r] for every stencil vertex v = ids[i, a] >= 0, in order."""
+    for i in range(ids.shape[0]):
+        for a in range(4):
+            v = ids[i, a]
+            if v >= 0:
+                for r in range(3):
+                    g[3 * v + r] += grads[i, 3 * a + r]
+
+
+@nb.njit(cache=True)
+def scatter_stencil_hessians(data, block_slots, hess):
+    """Add per-contact Hessians (n, 12, 12) into block values `data` (9 per 3x3 block):
+    block (a, b) of contact i goes to block slot block_slots[i, a, b] (-1: not stored,
+    i.e. a lower block whose mirror is stored, or a padded vertex). Serial, in order."""
+    for i in range(hess.shape[0]):
+        for a in range(4):
+            for b in range(4):
+                s = block_slots[i, a, b]
+                if s < 0:
+                    continue
+                base = 9 * s
+                for r in range(3):
+                    for q in range(3):
+                        data[base + 3 * r + q] += hess[i, 3 * a + r, 3 * b + q]
