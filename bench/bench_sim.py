@@ -209,6 +209,7 @@ def main() -> None:
                     print(describe(args.baseline, old))
                     print(f"             speed-up now vs {args.baseline}: {old['wall'] / now['wall']:.2f}x "
                           f"(per Newton iteration {old['wall'] / old['its'] / (now['wall'] / now['its']):.2f}x)", flush=True)
+                    print_vs(f"now - {args.baseline}", now, old, args.baseline)
             if args.fan:
                 fan_check(args.fan, args.fan_area, tol, cfg.max_newton_iterations, tmp)
         finally:
