@@ -103,7 +103,8 @@ def plot_overview(tables_root: str | Path, out: str | Path) -> Path:
     rows = list(SCENARIO_GROUPS.items())
     ncols = max(len(names) for _, names in rows)
     fig, axes = plt.subplots(len(rows), ncols, figsize=(3.0 * ncols + 1.2, 2.7 * len(rows)),
-                             subplot_kw={"projection": "polar"}, squeeze=False)
+                             subplot_kw={"projection": "polar"}, squeeze=False,
+                             gridspec_kw={"top": 0.94, "hspace": 0.45})
     n_fan = len(fan())
     res = sorted({str(t.provenance.get("resolution", {}).get("max_area_m2")) for t in available.values()})
     for r, (group, names) in enumerate(rows):
@@ -119,7 +120,7 @@ def plot_overview(tables_root: str | Path, out: str | Path) -> Path:
             sc = _draw_fan(ax, t, norm) or sc
             label = f"{names[c]} (default)" if names[c] == "shape1" else names[c]
             held = f"{len(t.point)}/{n_fan} points" if t is not None else "no table"
-            ax.set_title(f"{label}\n{held}", fontsize=8, pad=2)
+            ax.set_title(f"{label}\n{held}", fontsize=8, pad=16)
         if sc is None:
             from matplotlib.cm import ScalarMappable
             sc = ScalarMappable(norm=norm, cmap="viridis_r")
@@ -127,7 +128,7 @@ def plot_overview(tables_root: str | Path, out: str | Path) -> Path:
         cb.set_label(f"{group}: loss (mm)", fontsize=8)
         cb.ax.tick_params(labelsize=7)
     fig.suptitle(f"Loss landscapes (radius: height ratio, angle: tilt deg; red x: failed; circle: robust choice; "
-                 f"max area {', '.join(res) or '-'} m$^2$)", fontsize=10)
+                 f"max area {', '.join(res) or '-'} m$^2$)", fontsize=10, y=0.995)
     return _save(fig, out, 90)
 
 
