@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 from typing import Callable, Mapping
 
 import numpy as np
@@ -51,13 +52,9 @@ def middle_of_fan() -> int:
 Rule = Callable[[Mapping[str, Table], str], "tuple[int, str] | None"]
 
 
-def _robust(tables: Mapping[str, Table], held: str) -> tuple[int, str]:
-    c = choose(tables, tables[held].features, exclude=(held,), robust=True)
-    return c.point, "+".join(c.scenarios)
-
-
-def _argmin(tables: Mapping[str, Table], held: str) -> tuple[int, str]:
-    c = choose(tables, tables[held].features, exclude=(held,), robust=False)
+def _nearest_tables(tables: Mapping[str, Table], held: str, robust: bool) -> tuple[int, str]:
+    """select.choose without the held-out table (robust or raw argmin)."""
+    c = choose(tables, tables[held].features, exclude=(held,), robust=robust)
     return c.point, "+".join(c.scenarios)
 
 
@@ -76,8 +73,8 @@ def _default_best(tables: Mapping[str, Table], held: str) -> tuple[int, str] | N
 
 #: name -> (rule, description). A rule maps (tables, held-out name) to (fan point, source).
 RULES: dict[str, tuple[Rule, str]] = {
-    "robust": (_robust, "robust rule (neighbourhood-smoothed, nearest tables; the planner's)"),
-    "argmin": (_argmin, "raw argmin of the nearest table"),
+    "robust": (partial(_nearest_tables, robust=True), "robust rule (neighbourhood-smoothed, nearest tables; the planner's)"),
+    "argmin": (partial(_nearest_tables, robust=False), "raw argmin of the nearest table"),
     "static": (_static, "one static trajectory: the middle of the fan"),
     "default_best": (_default_best, "the default table's best point everywhere"),
 }

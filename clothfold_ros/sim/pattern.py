@@ -209,9 +209,7 @@ class HessianPattern:
             self.last_used[slots] = self.solves
             return BLOCK * BLOCK * slots + offset, vals, False
         if grow:
-            self._insert(self._with_neighbours(np.unique(keys[missing])))
-            slots = np.searchsorted(self.keys, keys)
-            self.last_used[slots] = self.solves
+            slots = self._grow_to(keys, missing)
             return BLOCK * BLOCK * slots + offset, vals, True
         self.last_used[slots[~missing]] = self.solves
         miss_keys, miss_vals = keys[missing], vals[missing]
@@ -235,12 +233,18 @@ class HessianPattern:
         keys = (va * self.nv + vb)[stored]
         slots, missing = self._find(keys)
         if missing.any():
-            self._insert(self._with_neighbours(np.unique(keys[missing])))
-            slots = np.searchsorted(self.keys, keys)
+            slots = self._grow_to(keys, missing)
         self.last_used[slots] = self.solves
         out = np.full(stored.shape, -1, dtype=np.int64)
         out[stored] = slots
         return out
+
+    def _grow_to(self, keys: np.ndarray, missing: np.ndarray) -> np.ndarray:
+        """Add the missing ones of `keys` (with their neighbours' pairs); their slots, marked used."""
+        self._insert(self._with_neighbours(np.unique(keys[missing])))
+        slots = np.searchsorted(self.keys, keys)
+        self.last_used[slots] = self.solves
+        return slots
 
     def grow_pending(self) -> bool:
         """Add the blocks deferred by contact_slots(grow=False); True if the pattern grew."""
