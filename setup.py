@@ -22,6 +22,10 @@ setup(
     + [  # lookup tables: config/tables/<scenario>/* -> share/clothfold_ros/config/tables/<scenario>/
         (f"share/{PACKAGE}/{d}", sorted(f for f in glob(f"{d}/*") if os.path.isfile(f)))
         for d in sorted(glob("config/tables/*/")) + ["config/tables"]
+    ]
+    + [  # 12K tables: what the planner reads (the sweeps' raw runs and final meshes stay in the checkout)
+        (f"share/{PACKAGE}/{d}", sorted(glob(f"{d}/*.csv") + glob(f"{d}/*.json")))
+        for d in sorted(glob("config/tables_12k/*/"))
     ],
     package_data={PACKAGE: ["py.typed"]},
     install_requires=["setuptools"],

@@ -30,7 +30,7 @@ def main() -> int:
     from clothfold_ros.lookup.planner_selector import TableSelector
 
     scene = build_scene(SceneSettings(max_area=args.max_area))
-    selector = TableSelector(ROOT / "config" / "tables")
+    selector = TableSelector([ROOT / "config" / "tables_12k", ROOT / "config" / "tables"])  # the node's default
     choices = {}
     for i, fold in enumerate(FOLD_SEQUENCE):
         sel = selector.select(fold_name=fold, keypoints=scene.garment.keypoints(scene.flat), material="cotton",

@@ -83,13 +83,15 @@ def test_readme_install_commands_build_and_fold(install_run):
     for exe in ("player_node", "recorder_node", "trajectory_node", "kinematic_robot_node", "clothfold"):
         assert (lib / exe).is_file(), exe
     assert (share / "config" / "tables" / "shape1" / "table.csv").is_file()
+    assert (share / "config" / "tables_12k" / "shape1" / "table.csv").is_file()
+    assert not (share / "config" / "tables_12k" / "shape1" / "finals.npz").exists()  # sweep data stay in the checkout
 
 
 def test_installed_resources_resolve_through_the_ament_index(install_run):
     ws, proc = install_run
     install = ws / "install"
     site = install / "clothfold_ros" / "lib" / "python3.11" / "site-packages"
-    code = ("from clothfold_ros.nodes import resources as r\n"  # what fold_planner_node.resolve_dir uses for table_dir
+    code = ("from clothfold_ros.nodes import resources as r\n"  # what fold_planner_node.resolve_dirs uses for table_dir
             "print(r.SOURCE_CHECKOUT, r.__file__, r.resource('config/tables'), r.work_dir())\n")
     env = {"PATH": f"{VENV}/bin:/usr/bin:/bin", "AMENT_PREFIX_PATH": f"{install / 'clothfold_ros'}:"
            f"{install / 'clothfold_msgs'}:{VENV}", "PYTHONPATH": str(site), "HOME": str(ws)}

@@ -137,6 +137,28 @@ def _write_table_dir(d: Path, t: Table, with_finals: bool = False) -> None:
         np.savez(d / "finals.npz", triangles=tri, target=target, start=target, **finals)
 
 
+def test_table_selector_layers_directories(tmp_path: Path) -> None:
+    """A scenario's table comes from the first directory holding a complete one; an incomplete
+    finer table waits; the note names the directory the choice came from."""
+    pts = np.arange(0, 134, 3)
+    _write_table_dir(tmp_path / "coarse" / "shape1", _table("shape1", _bowl(66)[pts], points=pts))
+    _write_table_dir(tmp_path / "fine" / "shape1", _table("shape1", _bowl(99)[pts], points=pts))
+    kp = flat_keypoints(1, "cotton")
+    args = dict(fold_name="left_sleeve", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=0)
+    prov = tmp_path / "fine" / "shape1" / "provenance.json"
+    for complete, winner, best in ((True, "fine", 99), (False, "coarse", 66)):
+        prov.write_text(json.dumps({"resolution": {"max_area_m2": 5e-5}, "complete": complete}))
+        sel = TableSelector(f"{tmp_path / 'fine'}:{tmp_path / 'missing'}:{tmp_path / 'coarse'}")
+        s = sel.select(**args)
+        assert (s.height_ratio, s.tilt_deg) == (FAN[best, 0], FAN[best, 1]), (complete, s)
+        assert f"table {tmp_path / winner / 'shape1'}" in s.note, s.note
+    (tmp_path / "coarse" / "shape1" / "table.csv").unlink()  # only the incomplete fine one left: it is used
+    sel = TableSelector([tmp_path / "fine", tmp_path / "coarse"])
+    assert (sel.select(**args).height_ratio, sel.origin["shape1"]) == (FAN[99, 0], tmp_path / "fine")
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        TableSelector(f"{tmp_path / 'a'}:{tmp_path / 'b'}")
+
+
 def test_table_selector(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match="does not exist"):
         TableSelector(tmp_path / "nowhere")

@@ -11,7 +11,7 @@ import numpy as np
 from .scenario import STAGE_OF_FOLD, features
 from .select import choose
 from .sweep_dir import LEGACY_END_ANGLE_DEG
-from .table import load_tables
+from .table import load_layered_tables, table_roots
 
 
 @dataclass(frozen=True)
@@ -27,13 +27,16 @@ class Selection:
 
 
 class TableSelector:
-    """Loads every scenario table under `table_dir` (e.g. config/tables) once and picks
-    robustly from the nearest scenario(s) (docs/lookup.md)."""
+    """Loads every scenario table under `table_dir` once and picks robustly from the nearest
+    scenario(s) (docs/lookup.md). table_dir: one directory, or several in order of precedence
+    (a list or "a:b"; e.g. "config/tables_12k:config/tables": a scenario's 12K table once it
+    is complete, the coarse one until then; `table.load_layered_tables`)."""
 
-    def __init__(self, table_dir: str | Path) -> None:
-        self.table_dir = Path(table_dir)
+    def __init__(self, table_dir: str | Path | list) -> None:
+        self.table_roots = table_roots(table_dir)
+        self.table_dir = ":".join(str(r) for r in self.table_roots)
         try:
-            self.tables = load_tables(self.table_dir)
+            self.tables, self.origin = load_layered_tables(self.table_roots)
         except FileNotFoundError as err:
             raise FileNotFoundError(f"TableSelector: {err}; generate them with "
                                     f"scripts/generate_lookup_tables.sh") from err
@@ -64,7 +67,8 @@ class TableSelector:
         raw = "failed there" if math.isnan(c.raw_loss) else f"{c.raw_loss * 1e3:.1f} mm"
         note = (f"fan point {c.point} from {', '.join(f'{n} (d={d:.2f})' for n, d in zip(c.scenarios, c.distances))}; "
                 f"smoothed loss {c.expected_loss * 1e3:.1f} mm, simulated {raw}; "
-                f"table max_area {t.provenance.get('resolution', {}).get('max_area_m2')} m^2")
+                f"table {self.origin[t.name] / t.name}, max_area {t.provenance.get('resolution', {}).get('max_area_m2')} "
+                f"m^2, {len(t.point)} fan points{'' if t.provenance.get('complete', True) else ' (incomplete)'}")
         if self.unusable:
             note += f"; skipped (no successful run): {', '.join(self.unusable)}"
         end_angle = float(t.provenance.get("settings", {}).get("end_angle_deg", LEGACY_END_ANGLE_DEG))

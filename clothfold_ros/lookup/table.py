@@ -142,3 +142,36 @@ def load_tables(root: str | Path) -> dict[str, Table]:
     if not tables:
         raise FileNotFoundError(f"no lookup tables (*/{TABLE}) under {r}")
     return tables
+
+
+def table_roots(spec: str | Path | list) -> list[Path]:
+    """Table directories in order of precedence: a list, or one string with several joined by
+    ':' (e.g. "config/tables_12k:config/tables")."""
+    if isinstance(spec, (list, tuple)):
+        return [Path(p) for p in spec]
+    return [Path(p) for p in str(spec).split(":") if p]
+
+
+def load_layered_tables(roots: list[Path]) -> tuple[dict[str, Table], dict[str, Path]]:
+    """Scenario tables from several roots in order of precedence, with the root each came from.
+
+    A scenario's table comes from the first root whose table for it is complete (every fan
+    point the sweep asked for simulated: provenance "complete"); where no root has a complete
+    one, from the first root that has it at all. So a finer table being computed replaces a
+    coarse one only once it is finished. Roots that do not exist are skipped; none existing,
+    or no table in any, is a FileNotFoundError; a broken table is a ValueError.
+    """
+    existing = [r for r in roots if Path(r).is_dir()]
+    if not existing:
+        raise FileNotFoundError(f"lookup table directory {' or '.join(str(r) for r in roots)} does not exist")
+    chosen: dict[str, Table] = {}
+    origin: dict[str, Path] = {}
+    for root in existing:
+        for d in layout.table_dirs(root):
+            t = load_table(d)
+            held = chosen.get(t.name)
+            if held is None or (not held.provenance.get("complete", True) and t.provenance.get("complete", True)):
+                chosen[t.name], origin[t.name] = t, Path(root)
+    if not chosen:
+        raise FileNotFoundError(f"no lookup tables (*/{TABLE}) under {', '.join(str(r) for r in existing)}")
+    return chosen, origin

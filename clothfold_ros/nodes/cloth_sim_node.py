@@ -48,6 +48,8 @@ PARAMS = [
     Param("settle_time", 0.2, "settle time after release (s) when the fold spec gives none", range=(0.0, 10.0)),
     Param("newton_tol", SimConfig.newton_tol, "Newton stop: RMS(|dx|)/dt (m/s)", range=(1e-8, 1.0), read_only=True),
     Param("max_newton_iterations", SimConfig.max_newton_iterations, "Newton iterations per step", range=(1, 10000), read_only=True),
+    Param("threads", 2, "solver threads (PARDISO, CCD; the numba kernels follow NUMBA_NUM_THREADS); results are "
+          "bit-for-bit the same for any count", range=(1, 64), read_only=True),
     Param("max_loss", 0.05, "a fold with a larger loss (m) is reported as failed", range=(0.0, 10.0)),
     Param("state_period", 0.5, "publish the cloth state/marker/points at most this often (wall s)",
           range=(0.0, 60.0)),
@@ -60,7 +62,7 @@ class ClothSimNode(LockStepBackend):
         from ..sim.scene import SceneSettings, build_scene
 
         self.scene = build_scene(SceneSettings(**{k: params.value(self, k) for k in (
-            "shape", "max_area", "material", "friction", "dt", "newton_tol", "max_newton_iterations")}))
+            "shape", "max_area", "material", "friction", "dt", "newton_tol", "max_newton_iterations", "threads")}))
         self.garment, self.material, self.config = self.scene.garment, self.scene.material, self.scene.config
         self.flat = self.scene.flat
         self.state_pub = self.create_publisher(ClothState, common.CLOTH_STATE, common.LATCHED)

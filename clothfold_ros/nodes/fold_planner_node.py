@@ -41,8 +41,9 @@ PARAMS = [
     Param("height_ratio", 0.5, "Bezier height ratio (-) when selection = parameter (the search space)",
           range=HEIGHT_RATIO_RANGE),
     Param("tilt_deg", 30.0, "Bezier tilt (deg) when selection = parameter (the search space)", range=TILT_RANGE_DEG),
-    Param("table_dir", "config/tables", "lookup tables directory (a relative path is below the package's share "
-          "directory, found through the ament index; the checkout when run from source)"),
+    Param("table_dir", "config/tables_12k:config/tables", "lookup table directories in order of precedence, "
+          "joined by ':' (a scenario's table comes from the first with a complete one); relative paths are below "
+          "the package's share directory, found through the ament index (the checkout when run from source)"),
     Param("fallback_to_parameters", False, "use the parameters when the table cannot be used (else refuse)"),
     params.MATERIAL,
     Param("friction", 0.5, "friction coefficient assumed for table selection (-)", range=(0.0, 2.0)),
@@ -56,11 +57,13 @@ PARAMS = [
 ]
 
 
-def resolve_dir(path: str) -> Path:
-    """table_dir as a path: absolute as given, relative below the package share directory."""
+def resolve_dirs(spec: str) -> list[Path]:
+    """table_dir as paths in order of precedence ("a:b"): absolute as given, relative below
+    the package share directory."""
+    from ..lookup.table import table_roots
     from .resources import resource
 
-    return resource(path)
+    return [resource(p) for p in table_roots(spec)]
 
 
 class FoldPlannerNode(Node):
@@ -115,13 +118,13 @@ class FoldPlannerNode(Node):
     def selector(self):
         """The TableSelector (loaded once, lazily); raises RuntimeError with the reason."""
         if self._selector is None and self._selector_error is None:
-            table_dir = resolve_dir(params.value(self, "table_dir"))
+            table_dir = resolve_dirs(params.value(self, "table_dir"))
             try:
                 from ..lookup.planner_selector import TableSelector
 
                 self._selector = TableSelector(table_dir)
             except Exception as err:  # noqa: BLE001 - missing module, tables or a bad file
-                self._selector_error = f"lookup table selector unavailable ({table_dir}): {type(err).__name__}: {err}"
+                self._selector_error = f"lookup table selector unavailable ({':'.join(map(str, table_dir))}): {type(err).__name__}: {err}"
         if self._selector is None:
             raise RuntimeError(self._selector_error)
         return self._selector

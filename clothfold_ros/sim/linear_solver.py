@@ -21,7 +21,8 @@ fails or the refinement does not converge, that system is factorized in double p
 PARDISO runs on `threads` MKL threads (a thread-local setting, default 1). With more than
 one, MKL's conditional numerical reproducibility mode (MKL_CBWR, set before MKL loads)
 and PARDISO's CNR thread count (iparm[33]) keep results bit-for-bit reproducible for a
-given thread count.
+given thread count; KMP_BLOCKTIME=0 (also set before MKL loads, unless set already) stops
+MKL's idle threads from spinning on the cores the rest of the Newton iteration needs.
 """
 from __future__ import annotations
 
@@ -34,6 +35,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 os.environ.setdefault("MKL_CBWR", "AUTO")  # reproducible threaded PARDISO; read when MKL loads
+# MKL's OpenMP threads sleep right after a parallel region instead of spinning for 200 ms:
+# spinning, they took the second core from the numba kernels and CCD that run between two
+# factorizations (12K fold on two threads: 1.04x over one thread with spinning, 1.22x without).
+os.environ.setdefault("KMP_BLOCKTIME", "0")
 try:  # MKL PARDISO through the library handle pypardiso loads (pypardiso finds mkl_rt).
     import pypardiso
 

@@ -32,6 +32,7 @@ class SceneSettings:
     dt: float = SimConfig.dt
     newton_tol: float = SimConfig.newton_tol
     max_newton_iterations: int = SimConfig.max_newton_iterations
+    threads: int = 1  # PARDISO and CCD threads (results are bit-for-bit the same for any count)
 
     def __post_init__(self) -> None:
         if self.shape not in SHAPES:
@@ -48,7 +49,8 @@ class SceneSettings:
 
     def config(self) -> SimConfig:
         """The solver settings (SimConfig defaults for everything not set here)."""
-        return SimConfig(dt=self.dt, newton_tol=self.newton_tol, max_newton_iterations=self.max_newton_iterations)
+        return SimConfig(dt=self.dt, newton_tol=self.newton_tol, max_newton_iterations=self.max_newton_iterations,
+                         solver_threads=self.threads, ccd_threads=self.threads)
 
 
 @dataclass(frozen=True, eq=False)
