@@ -116,6 +116,7 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
     row: dict = {"point": job.point, "height_ratio": job.height_ratio, "tilt_deg": job.tilt_deg}
     wall, newton, steps, reason, loss, ok = 0.0, 0, 0, "", float("nan"), True
     final = None
+    cpu0 = time.process_time()  # CPU seconds: unlike wall time, not inflated while the sweep is paused
     for fold in sc.folds:
         try:
             spec, _ = spec_for(fold, kp_start, garment.keypoints(flat), s.end_angle_deg)
@@ -133,7 +134,8 @@ def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
             break
         x, base, loss = out.vertices, out.target, out.loss
     row.update(loss_m=loss if ok else float("nan"), success=ok, reason=reason, wall_time_s=round(wall, 3),
-               newton_iterations=newton, steps=steps, solver_commit=commit)
+               cpu_time_s=round(time.process_time() - cpu0, 3), newton_iterations=newton, steps=steps,
+               solver_commit=commit)
     return row, (None if final is None else np.asarray(final, dtype=np.float32))
 
 

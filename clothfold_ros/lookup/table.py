@@ -102,7 +102,7 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
         "fan_points": sorted(points), "simulated": len(rows), "missing_points": missing,
         "failures": sum(not r["success"] for r in rows), "complete": not missing,
         "best": None if best is None else {k: best[k] for k in ("point", "height_ratio", "tilt_deg", "loss_m")},
-        "cpu_seconds": round(sum(r["wall_time_s"] for r in rows), 1),
+        "cpu_seconds": round(sum(r.get("cpu_time_s", r["wall_time_s"]) for r in rows), 1),  # wall where not recorded
         "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
     }
     (d / PROVENANCE).write_text(json.dumps(prov, indent=1))
