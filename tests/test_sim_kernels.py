@@ -266,6 +266,9 @@ def test_solver_and_settings_reject_bad_block_rhs_and_thread_counts():
             SimConfig(**bad)
     with pytest.raises(ValueError, match="pattern_growth_iterations"):
         SimConfig(pattern_growth_iterations=0)
+    for bad in ((1e-6, 1e-8), (0.0,), (-1.0,)):
+        with pytest.raises(ValueError, match="regularization_shifts"):
+            SimConfig(regularization_shifts=bad)
 
 
 def test_lagged_friction_kernels_equal_ipctk_friction_potential():
@@ -305,3 +308,71 @@ def test_lagged_friction_kernels_equal_ipctk_friction_potential():
         data = np.zeros(9 * pat.nnz)
         scatter_stencil_hessians(data, slots, c.friction.hessians(u))
         assert np.abs(_full(pat, data) - h_ref).max() <= 1e-12 * np.abs(h_ref).max()
+
+
+def _table_friction(eps: float, force: float):
+    """LaggedFriction with one cloth-table contact on vertex 0 (normal force `force`, mu 1)."""
+    from types import SimpleNamespace
+
+    from clothfold_ros.sim.friction import LaggedFriction
+
+    f = LaggedFriction(eps)
+    none = SimpleNamespace(vv_collisions=[], ev_collisions=[], ee_collisions=[], fv_collisions=[])
+    f.relag = lambda: f.lag(none, SimpleNamespace(edges=None, faces=None), 1.0, np.array([0]), np.array([force]))
+    f.relag()
+    return f
+
+
+def test_friction_contact_reversing_while_sliding_gets_the_overshoot_free_hessian():
+    """Sliding (|tau| > eps) the exact Hessian has no curvature along tau; a contact whose
+    tau reverses between two Newton iterations keeps c f1/y along tau for the rest of the
+    step (until the next lag); one that keeps its direction keeps the exact Hessian."""
+    eps, c = 1e-4, 2.0
+    f = _table_friction(eps, c)
+    u = np.zeros((1, 3))
+
+    def h_xx(x: float) -> float:
+        u[0, 0] = x
+        return float(f.hessians(u)[0, 0, 0])
+
+    assert h_xx(1e-3) == pytest.approx(0.0, abs=1e-9)  # sliding: exact, no curvature along tau
+    assert h_xx(2e-3) == pytest.approx(0.0, abs=1e-9)  # same direction: still exact
+    assert h_xx(-1e-3) == pytest.approx(c / 1e-3)  # reversed while sliding: c f1/y
+    assert h_xx(5e-4) == pytest.approx(c / 5e-4)  # sticky for the step
+    assert float(f.hessians(u)[0, 1, 1]) == pytest.approx(c / 5e-4)  # across tau as before
+    f.relag()  # a new step: exact again
+    assert not f.damped.any() and h_xx(5e-4) == pytest.approx(0.0, abs=1e-9)
+    g = _table_friction(eps, c)
+    u[0, 0] = 1e-3
+    g.hessians(u)
+    u[0, 0] = -2e-5  # reversal into the smoothed zone (|tau| < eps): not an overshoot past it
+    h = g.hessians(u)[0, 0, 0]
+    assert h == pytest.approx(c * (2.0 / eps - 2 * 2e-5 / eps**2))  # exact f1' there
+    assert not g.damped.any()
+
+
+def test_newton_system_whose_factorization_breaks_down_is_retried_with_a_diagonal_shift(monkeypatch):
+    """A breakdown of the factorization is retried with SimConfig.regularization_shifts x the
+    diagonal (counted per step); without shifts it is a reported failure."""
+    from clothfold_ros.materials import MATERIALS
+    from clothfold_ros.sim import ClothSimulator, SimConfig, SimulationFailure
+
+    cotton = MATERIALS["cotton"]
+    v, f = rectangle(0.04, 0.04, 1e-4, 0.01)
+    for shifts, fails in (((1e-12, 1e-10), False), ((), True)):
+        sim = ClothSimulator(v, f, cotton, 0.5, SimConfig(regularization_shifts=shifts))
+        factor = sim._solver.factor
+
+        def breaks_unshifted(data, sim=sim, factor=factor):  # the scaled system's diagonal is 1 unshifted
+            if np.abs(data[sim._pattern.diag_slots] - 1.0).max() < 1e-13:
+                raise np.linalg.LinAlgError("PARDISO phase 22 failed with error -4 (matrix not positive definite)")
+            factor(data)
+
+        monkeypatch.setattr(sim._solver, "factor", breaks_unshifted)
+        if fails:
+            with pytest.raises(SimulationFailure, match="linear solve failed"):
+                sim.step()
+        else:
+            stats = sim.step()
+            assert stats.regularized == stats.newton_iterations >= 1
+            assert sim.x[:, 2].max() < 0.01  # it fell: the shifted directions are descent directions

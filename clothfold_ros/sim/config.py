@@ -34,6 +34,7 @@ class SimConfig:
     eps_v: float = 1e-3  # m/s, smoothed static friction velocity
     broad_phase_reuse: float = 5e-4  # m: contact candidates are reused while no vertex moved farther
     table_margin: float = 0.05  # m the table extends beyond the cloth's rest footprint
+    regularization_shifts: tuple[float, ...] = (1e-12, 1e-10, 1e-8, 1e-6)  # x diag: retries of a failed factorization
     check_intersections: bool = True  # assert intersection-free after every step
     threads: int = 1  # ipctk threads (1 keeps results bit-for-bit deterministic)
     ccd_threads: int = 1  # ipctk threads of the CCD step-size query (a minimum over pairs: reproducible with any count)
@@ -50,5 +51,8 @@ class SimConfig:
             raise ValueError("pattern_growth_iterations must be >= 1")
         if self.threads < 1 or self.ccd_threads < 1 or self.solver_threads < 1:
             raise ValueError("threads, ccd_threads and solver_threads must be >= 1")
+        shifts = self.regularization_shifts
+        if any(not a < b for a, b in zip((0.0, *shifts), shifts)):
+            raise ValueError(f"regularization_shifts must be positive and increasing, got {shifts}")
         if self.max_newton_iterations < 1 or self.newton_window < 1:
             raise ValueError("max_newton_iterations and newton_window must be >= 1")

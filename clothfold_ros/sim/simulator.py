@@ -52,6 +52,7 @@ class StepStats:
     slipped: int = 0  # held vertices that slipped in the grip this step (lag > SimConfig.grasp_slip)
     analyses: int = 0  # symbolic factorizations (new sparsity pattern) this step
     solver_fallbacks: int = 0  # Newton systems factorized in double because single precision failed
+    regularized: int = 0  # Newton systems factorized only with a diagonal shift (SimConfig.regularization_shifts)
     phases: dict[str, float] = field(default_factory=dict)  # s per phase
 
 
@@ -110,6 +111,7 @@ class ClothSimulator:
                                        cfg.pattern_keep_solves, cfg.pattern_prune_fraction)
         self._pattern_version = -1  # pattern version the solver has analysed
         self.fallback_directions = 0  # Newton steps that fell back to the scaled gradient
+        self.regularized_solves = 0  # factorizations retried with a diagonal shift
         self._friction_key = None  # (friction contacts, pattern version) of _friction_cache
         self._friction_cache = np.zeros((0, 4, 4), dtype=np.int64)
         xi = material.thickness if cfg.xi is None else cfg.xi
@@ -243,7 +245,7 @@ class ClothSimulator:
         self.contact.lag_friction(x_prev)
         phases["friction_lag"] += time.perf_counter() - tic
 
-        analyses0, fallbacks0 = self._solver.analyses, self._solver.fallbacks
+        analyses0, fallbacks0, regularized0 = self._solver.analyses, self._solver.fallbacks, self.regularized_solves
         x, col = self._warm_start(x_prev, weight, anchor, phases)
         x, iterations, halvings, residual, col = self._newton(x, x_prev, x_hat, phases, when, pull, col)
         if self.config.check_intersections:
@@ -269,6 +271,7 @@ class ClothSimulator:
             slipped=slipped,
             analyses=self._solver.analyses - analyses0,
             solver_fallbacks=self._solver.fallbacks - fallbacks0,
+            regularized=self.regularized_solves - regularized0,
         )
 
     def _slip(self, x: np.ndarray, poses: dict[int, Pose], anchor: np.ndarray) -> tuple[float, int]:
@@ -290,6 +293,11 @@ class ClothSimulator:
         contact exceed the mass entries by many orders of magnitude, and unscaled the
         factorization loses so much accuracy there that the "descent" direction can point
         uphill. If it still does, the step falls back to the diagonally scaled gradient.
+        A matrix that is positive definite but whose factorization still breaks down (a
+        contact block some 1e16 times stiffer than the mass of its vertices: the pivot of
+        their relative motion cancels to rounding) is factorized again with
+        `SimConfig.regularization_shifts` times its diagonal added, the smallest that works
+        (counted in `StepStats.regularized`); other systems are solved as they are.
         """
         pat = self._pattern
         if self._pattern_version != (id(pat), pat.version):
@@ -299,11 +307,21 @@ class ClothSimulator:
         if not np.all(d > 0) or not np.all(np.isfinite(data)):
             raise SimulationFailure(f"{when}: Newton matrix has a non-positive or non-finite diagonal")
         scale = 1.0 / np.sqrt(d)
-        try:
-            self._solver.factor(pat.scaled(data, scale))
-            p = scale * self._solver.solve(-scale * grad)
-        except np.linalg.LinAlgError as err:
-            raise SimulationFailure(f"{when}: linear solve failed: {err}") from err
+        scaled = pat.scaled(data, scale)
+        for shift in (0.0, *self.config.regularization_shifts):
+            try:
+                if shift:  # diag(A) * shift added: the factorization failed on the matrix itself
+                    scaled[pat.diag_slots] += shift - previous
+                    self.regularized_solves += 1
+                self._solver.factor(scaled)
+                p = scale * self._solver.solve(-scale * grad)
+                break
+            except np.linalg.LinAlgError as err:
+                previous, failure = shift, err
+        else:
+            shifts = self.config.regularization_shifts
+            tried = f" (also with diagonal shifts up to {max(shifts):g} x diag)" if shifts else ""
+            raise SimulationFailure(f"{when}: linear solve failed: {failure}{tried}") from failure
         if not np.all(np.isfinite(p)):
             raise SimulationFailure(f"{when}: Newton direction is not finite")
         if float(grad @ p) >= 0.0:
