@@ -11,9 +11,12 @@ grippers force the cloth into itself) may be reported as a result.
     python scripts/solver_convergence.py [--tables config/tables] [--workers 2] [--points tilt60,table]
                                          [--also shape1:2e-4:2 ...]
 
---also SCENARIO:MAX_AREA:POINT adds one fan point of a scenario's table at another mesh
-resolution (default: shape1 fan point 2, h 0.169 tilt 60, at 3K triangles, which stalled in a
-contact limit cycle at t = 2.32 s during the resolution study).
+--also SCENARIO:MAX_AREA:POINT adds one fan point of a scenario at a mesh resolution (with
+its shipped table's settings, else the sweep's defaults). Default: shape1 fan point 2 (h 0.169,
+tilt 60) at 3K triangles, which stalled in a contact limit cycle at t = 2.32 s during the
+resolution study, and T1 (1-s motion) fan point 1 (h 0.1, tilt 0) at 3K, which hit the Newton
+cap at t = 0.28 s (a vertex sliding back and forth past its sticking point) before the
+friction overshoot damping.
 """
 from __future__ import annotations
 
@@ -53,8 +56,8 @@ def main() -> int:
     ap.add_argument("--scenarios", nargs="+", default=["shape1", "both_sleeves"])
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--points", default="tilt60,table", help="tilt60 and/or table (the table's own points)")
-    ap.add_argument("--also", nargs="*", default=["shape1:2e-4:2"], metavar="SCENARIO:MAX_AREA:POINT",
-                    help="extra runs: a table's scenario at another resolution")
+    ap.add_argument("--also", nargs="*", default=["shape1:2e-4:2", "T1:2e-4:1"], metavar="SCENARIO:MAX_AREA:POINT",
+                    help="extra runs: a scenario (its shipped table's settings, else the sweep's defaults) at a resolution")
     args = ap.parse_args()
     sys.path.insert(0, str(ROOT))
     from clothfold_ros.trajectory import fan
@@ -71,10 +74,16 @@ def main() -> int:
         if "table" in args.points:
             pts |= {json.loads(ln)["point"] for ln in (d / "runs.jsonl").read_text().splitlines() if ln.strip()}
         jobs += [(sc, settings, int(i), float(f[i, 0]), float(f[i, 1]), start) for i in sorted(pts)]
+    from dataclasses import asdict
+
+    from clothfold_ros.lookup.sweep_dir import SweepSettings
+
     for extra in args.also:
         sc, area, point = extra.split(":")
         d = args.tables / sc
-        settings = dict(json.loads((d / "settings.json").read_text()), max_area=float(area))
+        known = (d / "settings.json").exists()  # a shipped table's settings, else the sweep defaults
+        settings = dict(json.loads((d / "settings.json").read_text()) if known else asdict(SweepSettings(sc)),
+                        max_area=float(area))
         start = str(d / "start.npz") if (d / "start.npz").exists() else None
         jobs.append((sc, settings, int(point), float(f[int(point), 0]), float(f[int(point), 1]), start))
     print(f"{len(jobs)} runs on {args.workers} worker(s): " + ", ".join(args.scenarios + args.also), flush=True)

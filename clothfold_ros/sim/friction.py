@@ -115,6 +115,21 @@ class LaggedFriction:
         return _hessians(u, self.ids, self.P, self.c, self.eps, self._tau, self.damped)
 
 
+@nb.njit(cache=True, inline="always")
+def _tangential(u, ids, P, i):
+    """tau = P u_stencil of contact i (its two tangential displacement components, m)."""
+    t0 = 0.0
+    t1 = 0.0
+    for a in range(4):
+        v = ids[i, a]
+        if v < 0:
+            continue
+        for r in range(3):
+            t0 += P[i, 0, 3 * a + r] * u[v, r]
+            t1 += P[i, 1, 3 * a + r] * u[v, r]
+    return t0, t1
+
+
 @nb.njit(cache=True)
 def _derivatives(u, ids, P, c, eps, order):
     """Energy, per-contact gradients (n, 12) (order >= 1) and Hessians (n, 12, 12) (order 2)."""
@@ -124,15 +139,7 @@ def _derivatives(u, ids, P, c, eps, order):
     energy = 0.0
     w = np.empty((2, 12))
     for i in range(n):
-        t0 = 0.0
-        t1 = 0.0
-        for a in range(4):
-            v = ids[i, a]
-            if v < 0:
-                continue
-            for r in range(3):
-                t0 += P[i, 0, 3 * a + r] * u[v, r]
-                t1 += P[i, 1, 3 * a + r] * u[v, r]
+        t0, t1 = _tangential(u, ids, P, i)
         y = np.sqrt(t0 * t0 + t1 * t1)
         if y < eps:
             f0 = -y * y * y / (3.0 * eps * eps) + y * y / eps + eps / 3.0
@@ -171,15 +178,7 @@ def _hessians(u, ids, P, c, eps, tau_prev, damped):
     """Hessians (n, 12, 12); updates tau_prev (n, 2) and the sticky `damped` mask (n,)."""
     hess = _derivatives(u, ids, P, c, eps, 2)[2]
     for i in range(ids.shape[0]):
-        t0 = 0.0
-        t1 = 0.0
-        for a in range(4):
-            v = ids[i, a]
-            if v < 0:
-                continue
-            for r in range(3):
-                t0 += P[i, 0, 3 * a + r] * u[v, r]
-                t1 += P[i, 1, 3 * a + r] * u[v, r]
+        t0, t1 = _tangential(u, ids, P, i)
         p0, p1 = tau_prev[i, 0], tau_prev[i, 1]
         if (t0 * p0 + t1 * p1 < 0.0 and t0 * t0 + t1 * t1 > eps * eps and p0 * p0 + p1 * p1 > eps * eps):
             damped[i] = True
