@@ -41,6 +41,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "cloth_state: what a camera would see of the simulated mesh, no fitting (default: config file)")
     p.add_argument("--selection", choices=("table", "parameter"), default=None,
                    help="(height ratio, tilt) from the lookup table or the parameters (default: config file)")
+    p.add_argument("--tables", default=None, metavar="DIR[:DIR...]",
+                   help="the planner's table directories in order of precedence (default: config file, "
+                   "config/tables_12k:config/tables); e.g. config/tables for the coarse tables' choices")
     p.add_argument("--bags", type=Path, default=Path("bags"),
                    help="bag directory (default bags/: in the checkout from source, else in the current directory)")
     p.add_argument("--name", default=None, help="run name (default demo-<date>-<time>)")
@@ -85,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
     overrides: dict[str, dict] = {"cloth_sim_node": {"max_area": args.max_area}}
     if args.selection:
         overrides["fold_planner_node"] = {"selection": args.selection}
+    if args.tables:
+        overrides.setdefault("fold_planner_node", {})["table_dir"] = args.tables
     if args.keypoints:
         overrides["keypoint_node"] = {"source": args.keypoints, "max_area": args.max_area}
     if args.sequence:
