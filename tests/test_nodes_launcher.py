@@ -125,7 +125,8 @@ def test_launcher_escalates_and_leaves_nothing(tmp_path):
                 "print('child', child.pid, flush=True)\n"
                 "time.sleep(60)\n")
     # polite takes a while to shut down: a second SIGINT meanwhile would kill it (exit -2)
-    polite = ("import time\ntry:\n    print('up', flush=True); time.sleep(60)\nexcept KeyboardInterrupt:\n"
+    polite = ("import signal, time\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n"  # even if inherited ignored
+              "try:\n    print('up', flush=True); time.sleep(60)\nexcept KeyboardInterrupt:\n"
               "    time.sleep(0.5); print('bye')\n")
     launcher = Launcher(domain_id=155, echo=False)
     a = launcher.start("stubborn", [sys.executable, "-c", stubborn])

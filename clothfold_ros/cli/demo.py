@@ -75,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
 
     tic = time.monotonic()
     old_term = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM: the same clean stop as Ctrl-C
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:  # started with '&' from a script: SIGINT
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # was inherited ignored; Ctrl-C/kill -INT stop us
     folds = list(FOLD_SEQUENCE) if args.sequence else [args.fold]
     name = args.name or time.strftime("demo-%Y%m%d-%H%M%S")
     bags = args.bags if args.bags.is_absolute() else work_dir() / args.bags
