@@ -135,13 +135,7 @@ def load_table(table_dir: str | Path) -> Table:
 
 def load_tables(root: str | Path) -> dict[str, Table]:
     """All scenario tables under `root` (each sub-directory with a table.csv)."""
-    r = Path(root)
-    if not r.is_dir():
-        raise FileNotFoundError(f"lookup table directory {r} does not exist")
-    tables = {t.name: t for t in (load_table(p) for p in layout.table_dirs(r))}
-    if not tables:
-        raise FileNotFoundError(f"no lookup tables (*/{TABLE}) under {r}")
-    return tables
+    return load_layered_tables([Path(root)])[0]
 
 
 def table_roots(spec: str | Path | list) -> list[Path]:
