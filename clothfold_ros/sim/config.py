@@ -35,6 +35,11 @@ class SimConfig:
     broad_phase_reuse: float = 5e-4  # m: contact candidates are reused while no vertex moved farther
     table_margin: float = 0.05  # m the table extends beyond the cloth's rest footprint
     regularization_shifts: tuple[float, ...] = (1e-12, 1e-10, 1e-8, 1e-6)  # x diag: retries of a failed factorization
+    subspace_threshold: float = 1e-4  # m/s: after subspace_start full Newton iterations of a step, solve only for
+    #   the vertices whose last full step exceeded this speed (and their neighbours); 0: always all vertices
+    subspace_start: int = 2  # full Newton iterations of a step before subspace ones
+    subspace_rings: int = 1  # rings of pattern neighbours added to the moving vertices
+    subspace_max_share: float = 0.6  # a subspace holding more than this share of the vertices is solved whole
     check_intersections: bool = True  # assert intersection-free after every step
     threads: int = 1  # ipctk threads (1 keeps results bit-for-bit deterministic)
     ccd_threads: int = 1  # ipctk threads of the CCD step-size query (a minimum over pairs: reproducible with any count)
@@ -54,5 +59,9 @@ class SimConfig:
         shifts = self.regularization_shifts
         if any(not a < b for a, b in zip((0.0, *shifts), shifts)):
             raise ValueError(f"regularization_shifts must be positive and increasing, got {shifts}")
+        if self.subspace_threshold < 0 or self.subspace_start < 1 or self.subspace_rings < 0:
+            raise ValueError("subspace_threshold must be >= 0 m/s, subspace_start >= 1 and subspace_rings >= 0")
+        if not 0.0 < self.subspace_max_share <= 1.0:
+            raise ValueError(f"subspace_max_share must be in (0, 1], got {self.subspace_max_share}")
         if self.max_newton_iterations < 1 or self.newton_window < 1:
             raise ValueError("max_newton_iterations and newton_window must be >= 1")

@@ -26,6 +26,7 @@ from .friction import scatter_stencil_hessians
 from .grasp import Grasp, grasp
 from .linear_solver import spd_solver
 from .pattern import HessianPattern, element_dofs, scatter_gradient
+from .subspace import Subsystem, active_vertices, subsystem
 
 
 class SimulationFailure(RuntimeError):
@@ -112,6 +113,7 @@ class ClothSimulator:
         self._pattern_version = -1  # pattern version the solver has analysed
         self.fallback_directions = 0  # Newton steps that fell back to the scaled gradient
         self.regularized_solves = 0  # factorizations retried with a diagonal shift
+        self.subspace_solves = 0  # Newton directions solved on the moving vertices only
         self._friction_key = None  # (friction contacts, pattern version) of _friction_cache
         self._friction_cache = np.zeros((0, 4, 4), dtype=np.int64)
         xi = material.thickness if cfg.xi is None else cfg.xi
@@ -122,6 +124,8 @@ class ClothSimulator:
         import ipctk
 
         self._solver = spd_solver(cfg.linear_solver, cfg.solver_threads, cfg.linear_precision)
+        self._sub_solver = spd_solver(cfg.linear_solver, cfg.solver_threads, cfg.linear_precision)
+        self._sub_analysed = None  # the subsystem whose pattern the subspace solver holds
         self._project = membrane.PROJECT_ABS if cfg.psd_projection == "abs" else membrane.PROJECT_CLAMP
         self.contact.psd = ipctk.PSDProjectionMethod.ABS if cfg.psd_projection == "abs" else ipctk.PSDProjectionMethod.CLAMP
 
@@ -286,8 +290,9 @@ class ClothSimulator:
                 slipped += int(slip.sum())
         return lag_max, slipped
 
-    def _direction(self, data: np.ndarray, grad: np.ndarray, when: str) -> np.ndarray:
-        """Newton direction -H^-1 grad for the Hessian values `data` on the pattern.
+    def _direction(self, data: np.ndarray, grad: np.ndarray, when: str, sub: Subsystem | None = None) -> np.ndarray:
+        """Newton direction -H^-1 grad for the Hessian values `data` on the pattern; with
+        `sub`, the direction of its vertices only (H_AA p_A = -g_A, the rest zero).
 
         The system is scaled symmetrically by its diagonal first: barrier entries near
         contact exceed the mass entries by many orders of magnitude, and unscaled the
@@ -308,26 +313,51 @@ class ClothSimulator:
             raise SimulationFailure(f"{when}: Newton matrix has a non-positive or non-finite diagonal")
         scale = 1.0 / np.sqrt(d)
         scaled = pat.scaled(data, scale)
-        for shift in (0.0, *self.config.regularization_shifts):
-            try:
-                if shift:  # diag(A) * shift added: the factorization failed on the matrix itself
-                    scaled[pat.diag_slots] += shift - previous
-                    self.regularized_solves += 1
-                self._solver.factor(scaled)
-                p = scale * self._solver.solve(-scale * grad)
-                break
-            except np.linalg.LinAlgError as err:
-                previous, failure = shift, err
+        if sub is None:
+            p = scale * self._factor_solve(self._solver, scaled, pat.diag_slots, -scale * grad, when)
         else:
-            shifts = self.config.regularization_shifts
-            tried = f" (also with diagonal shifts up to {max(shifts):g} x diag)" if shifts else ""
-            raise SimulationFailure(f"{when}: linear solve failed: {failure}{tried}") from failure
+            if self._sub_analysed is not sub:
+                self._sub_solver.set_pattern(sub.indptr, sub.indices, pat.block)
+                self._sub_analysed = sub
+            dofs = sub.dofs
+            p = np.zeros(len(grad))
+            p[dofs] = scale[dofs] * self._factor_solve(self._sub_solver, sub.values(scaled), sub.diag_slots,
+                                                       -scale[dofs] * grad[dofs], when)
+            self.subspace_solves += 1
         if not np.all(np.isfinite(p)):
             raise SimulationFailure(f"{when}: Newton direction is not finite")
         if float(grad @ p) >= 0.0:
             self.fallback_directions += 1
             p = -grad / d
+            if sub is not None:
+                p[~np.repeat(sub.active, 3)] = 0.0
         return p.reshape(-1, 3)
+
+    def _subsystem(self, p: np.ndarray) -> Subsystem | None:
+        """The subsystem of the vertices that the full direction p (N, 3) moves faster than
+        `SimConfig.subspace_threshold` and their neighbours; None where that is most of them."""
+        cfg, pat = self.config, self._pattern
+        active = active_vertices(p, cfg.subspace_threshold * self.dt, pat.block_rows, pat.indices, cfg.subspace_rings)
+        if active.sum() > cfg.subspace_max_share * len(active):
+            return None
+        return subsystem(pat.block_rows, pat.indices, active)
+
+    def _factor_solve(self, solver, scaled: np.ndarray, diag_slots: np.ndarray, rhs: np.ndarray,
+                      when: str) -> np.ndarray:
+        """Solve the diagonally scaled system, retrying a factorization that breaks down
+        with `SimConfig.regularization_shifts` (times the unit diagonal) added."""
+        for shift in (0.0, *self.config.regularization_shifts):
+            try:
+                if shift:  # diag(A) * shift added: the factorization failed on the matrix itself
+                    scaled[diag_slots] += shift - previous
+                    self.regularized_solves += 1
+                solver.factor(scaled)
+                return solver.solve(rhs)
+            except np.linalg.LinAlgError as err:
+                previous, failure = shift, err
+        shifts = self.config.regularization_shifts
+        tried = f" (also with diagonal shifts up to {max(shifts):g} x diag)" if shifts else ""
+        raise SimulationFailure(f"{when}: linear solve failed: {failure}{tried}") from failure
 
     def _friction_slots(self, friction) -> np.ndarray:
         """Block slots of the lagged friction contacts' stencils in the current pattern
@@ -352,6 +382,7 @@ class ClothSimulator:
         # col: collisions at x (from the warm start, then carried over from the line search)
         diag = self._mass_dof if pull is None else self._mass_dof + np.repeat(pull[0], 3)
         energy = None  # incremental potential at x (J), from the last line search while kappa is unchanged
+        full, sub, sub_version = 0, None, -1  # full directions so far; the subsystem of the moving vertices
         for it in range(1, cfg.max_newton_iterations + 1):
             if col is None:
                 tic = time.perf_counter()
@@ -387,11 +418,24 @@ class ClothSimulator:
                 scatter_stencil_hessians(data, self._friction_slots(friction), friction_hessians)
             phases["assembly"] += time.perf_counter() - tic
             tic = time.perf_counter()
-            p = self._direction(data, grad, when)
-            phases["linear_solve"] += time.perf_counter() - tic
+            if sub is not None and sub_version != self._pattern.version:  # the pattern grew: same vertices
+                sub, sub_version = subsystem(self._pattern.block_rows, self._pattern.indices, sub.active), \
+                    self._pattern.version
+            p = self._direction(data, grad, when, sub)
             residual = float(np.sqrt(np.mean(np.sum(p**2, axis=1)))) / h
+            if sub is not None and residual <= cfg.newton_tol:  # the moving cloth has converged: check all of it
+                sub = None
+                p = self._direction(data, grad, when)
+                residual = float(np.sqrt(np.mean(np.sum(p**2, axis=1)))) / h
+            full_direction = sub is None
+            if full_direction:
+                full += 1
+                if cfg.subspace_threshold > 0 and full >= cfg.subspace_start and residual > cfg.newton_tol:
+                    sub, sub_version = self._subsystem(p), self._pattern.version
+            phases["linear_solve"] += time.perf_counter() - tic
             residuals.append(residual)
-            if len(residuals) >= cfg.newton_window and max(residuals[-cfg.newton_window :]) <= cfg.newton_tol:
+            if full_direction and len(residuals) >= cfg.newton_window and \
+                    max(residuals[-cfg.newton_window :]) <= cfg.newton_tol:
                 return x, it, halvings, residual, col
             x_new, col_t, n_halved, energy = self._line_search(x, p, grad, x_hat, x_prev, col, pull, phases, when,
                                                                f"Newton iteration {it}, residual {residual:.3g} m/s",
