@@ -230,3 +230,21 @@ def test_scenarios_and_features() -> None:
     thin, thick = (definition_features(SCENARIOS[n]) for n in ("thin_cotton", "thick_cotton"))
     assert normalized_distance(thin, f1) == pytest.approx(1.0) and normalized_distance(thick, f1) == pytest.approx(1.0)
     assert math.isfinite(f1["grip_distance"]) and f1["grip_distance"] > 0.1
+
+
+def test_losses_within_the_tie_margin_go_to_the_middle_of_the_fan() -> None:
+    """A plateau whose losses differ by less than the tie margin (0.5 mm) ranks nothing: the
+    robust rule takes the point nearest the fan's middle; a middle worse by more than the
+    margin is not taken, and the raw argmin ignores the margin."""
+    rng = np.random.default_rng(3)
+    mid = middle_of_fan()
+    loss = 0.001 + 2e-4 * rng.random(len(FAN))  # a 0.2 mm spread over the whole fan
+    loss[mid] = 0.0012
+    t = _table("shape1", loss)
+    assert choose({"shape1": t}, t.features).point == mid
+    assert choose({"shape1": t}, t.features, robust=False).point == int(np.argmin(loss))
+    assert choose({"shape1": t}, t.features, tie_margin=0.0).point != mid
+    far = loss.copy()
+    far[mid] = 0.010  # 9 mm worse: its smoothed loss (a mean with its neighbours) leaves the margin
+    t = _table("shape1", far)
+    assert choose({"shape1": t}, t.features).point != mid

@@ -12,6 +12,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("regret", help="leave-one-scenario-out regret of the lookup selection")
     add_tables_option(p)
     p.add_argument("--out", type=Path, default=None, help="also write the Markdown report here")
+    p.add_argument("--partial", action="store_true",
+                   help="also hold out and choose from partial tables (default: complete tables only)")
     p.set_defaults(func=run)
 
 
@@ -21,8 +23,16 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         tables = load_tables(tables_arg(args))
+        partial = sorted(n for n, t in tables.items() if not t.provenance.get("complete", True))
+        if not args.partial:
+            tables = {n: t for n, t in tables.items() if n not in partial}
         rows = {name: evaluate(tables, name) for name in RULES}
-        text = "\n\n".join([summary(rows)] + [report(r, RULES[name][1]) for name, r in rows.items()])
+        head = f"{len(tables)} tables: {', '.join(sorted(tables))}"
+        if partial:
+            head += ("; partial tables included: " if args.partial else "; partial tables left out: ") + \
+                ", ".join(f"{n} ({len(t.point)} points)" for n, t in sorted(load_tables(tables_arg(args)).items())
+                          if n in partial)
+        text = "\n\n".join([head, summary(rows)] + [report(r, RULES[name][1]) for name, r in rows.items()])
     except (FileNotFoundError, ValueError, RuntimeError) as err:
         print(f"clothfold regret: {err}", file=sys.stderr)
         return 2

@@ -18,7 +18,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..trajectory import fan
-from .select import choose, failure_penalty, fan_xy
+from .select import choose, failure_penalty, middle_of_fan
 from .table import Table
 
 DEFAULT_SCENARIO = "shape1"
@@ -38,15 +38,6 @@ class RegretRow:
     best_loss: float
     regret: float
     flag: str  # '' | 'failed in held-out' | 'not simulated in held-out' | 'no success in held-out' | 'n/a: ...'
-
-
-def middle_of_fan() -> int:
-    """The fan point nearest (in the fan layout) to the middle of the fan: height ratio
-    halfway between 0.1 and 1.0, tilt 30 deg."""
-    f = fan()
-    xy = fan_xy(f[:, 0], f[:, 1])
-    mid = fan_xy(np.array([0.5 * (f[:, 0].min() + f[:, 0].max())]), np.array([0.5 * (f[:, 1].min() + f[:, 1].max())]))
-    return int(np.argmin(np.linalg.norm(xy - mid, axis=1)))
 
 
 Rule = Callable[[Mapping[str, Table], str], "tuple[int, str] | None"]

@@ -9,8 +9,12 @@ Rule (docs/lookup.md):
    bandwidth sigma = the median nearest-neighbour spacing of the table's points,
    cut off at 2 sigma (the point itself has weight 1). A failed run counts as the
    table's worst successful loss (the failure penalty).
-3. The chosen point minimises the (blended) smoothed loss over the fan points present
-   in all used tables; ties go to the lower raw loss, then the lower fan index.
+3. Candidates are the nearest table's fan points whose (blended) smoothed loss lies within
+   `tie_margin` (0.5 mm) of the least; a table blended in must hold all of them (a
+   partial table is left out, not intersected with). Losses closer than that rank nothing
+   (the simulator's fast settings are held to 0.5 mm of a converged reference), so among
+   the candidates the point nearest the middle of the fan wins (the study's suggestion
+   for one static trajectory); then the lower score, the lower raw loss, the lower index.
 """
 from __future__ import annotations
 
@@ -20,10 +24,12 @@ from typing import Mapping
 
 import numpy as np
 
+from ..trajectory import fan
 from .scenario import normalized_distance
 from .table import Table
 
 DEFAULT_BLEND_MARGIN = 0.5  # normalized feature units
+DEFAULT_TIE_MARGIN = 5e-4  # m: smoothed losses closer than this to the least count as equal
 CUTOFF_SIGMAS = 2.0
 
 
@@ -32,6 +38,15 @@ def fan_xy(height_ratio: np.ndarray, tilt_deg: np.ndarray) -> np.ndarray:
     t = np.radians(np.asarray(tilt_deg, dtype=float))
     h = np.asarray(height_ratio, dtype=float)
     return np.column_stack([h * np.cos(t), h * np.sin(t)])
+
+
+def middle_of_fan() -> int:
+    """The fan point nearest (in the fan layout) to the middle of the fan: height ratio
+    halfway between its least and largest, tilt halfway between 0 and 60 deg."""
+    f = fan()
+    xy = fan_xy(f[:, 0], f[:, 1])
+    mid = fan_xy(np.array([0.5 * (f[:, 0].min() + f[:, 0].max())]), np.array([0.5 * (f[:, 1].min() + f[:, 1].max())]))
+    return int(np.argmin(np.linalg.norm(xy - mid, axis=1)))
 
 
 def failure_penalty(table: Table) -> float:
@@ -89,18 +104,18 @@ def nearest(tables: Mapping[str, Table], feats: Mapping[str, float], exclude: tu
 
 
 def choose(tables: Mapping[str, Table], feats: Mapping[str, float], exclude: tuple[str, ...] = (),
-           blend_margin: float = DEFAULT_BLEND_MARGIN, robust: bool = True) -> Choice:
+           blend_margin: float = DEFAULT_BLEND_MARGIN, robust: bool = True,
+           tie_margin: float = DEFAULT_TIE_MARGIN) -> Choice:
     """The robust choice for scenario features `feats` (robust=False: the raw argmin of
-    the nearest table, for comparison)."""
+    the nearest table, for comparison; tie_margin applies to the robust rule only)."""
     used = nearest(tables, feats, exclude, blend_margin if robust else 0.0)
     if not robust:
         used = used[:1]
     first = tables[used[0][0]]
     common = set(first.point.tolist())
-    for n, _ in used[1:]:
-        common &= set(tables[n].point.tolist())
-    if not common:  # tables on disjoint fan points: use the nearest alone
-        used, common = used[:1], set(first.point.tolist())
+    # a table blended in must hold every point of the nearest one: intersecting with a
+    # partial table would restrict the choice to the few points it has simulated
+    used = used[:1] + [(n, d) for n, d in used[1:] if common <= set(tables[n].point.tolist())]
     pts = np.array(sorted(common))
     score = np.zeros(len(pts))
     wsum = 0.0
@@ -113,7 +128,14 @@ def choose(tables: Mapping[str, Table], feats: Mapping[str, float], exclude: tup
         wsum += w
     score /= wsum
     raw = penalized_loss(first)[[int(np.flatnonzero(first.point == p)[0]) for p in pts]]
-    order = np.lexsort((pts, raw, np.round(score, 12)))
+    if robust:  # equal within the margin: nearest the middle of the fan first
+        f = fan()
+        mid = fan_xy(f[[middle_of_fan()], 0], f[[middle_of_fan()], 1])
+        off_middle = np.linalg.norm(fan_xy(f[pts, 0], f[pts, 1]) - mid, axis=1)
+        off_middle[score > score.min() + tie_margin] = np.inf
+        order = np.lexsort((pts, raw, np.round(score, 12), np.round(off_middle, 12)))
+    else:
+        order = np.lexsort((pts, raw, np.round(score, 12)))
     p = int(pts[order[0]])
     k = int(np.flatnonzero(first.point == p)[0])
     return Choice(p, float(first.height_ratio[k]), float(first.tilt_deg[k]), tuple(n for n, _ in used),
