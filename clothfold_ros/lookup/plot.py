@@ -9,7 +9,7 @@ import numpy as np
 from ..trajectory import fan
 from . import sweep_dir as layout
 from .scenario import SCENARIO_GROUPS
-from .select import smoothed_loss
+from .select import choose
 from .table import Table, load_table
 
 
@@ -34,7 +34,7 @@ def _save(fig, out: str | Path, dpi: int) -> Path:
 def _draw_fan(ax, t: Table | None, norm, legend: bool = False):
     """One table's landscape on the polar axes `ax`: every fan point as a grey dot,
     successful runs coloured by loss (mm) under `norm`, failed runs as red crosses, the
-    robust choice (smoothed best) circled. t None: the fan alone (no table). Returns the
+    robust choice (select.choose on this table alone) circled. t None: the fan alone (no table). Returns the
     scatter of the coloured points (None when there is none)."""
     f = fan()
     ax.scatter(np.radians(f[:, 1]), f[:, 0], s=4 if not legend else 6, c="0.8", label="fan point (not simulated)")
@@ -45,7 +45,7 @@ def _draw_fan(ax, t: Table | None, norm, legend: bool = False):
             sc = ax.scatter(np.radians(t.tilt_deg[ok]), t.height_ratio[ok], c=t.loss[ok] * 1e3, s=70 if legend else 14,
                             cmap="viridis_r", norm=norm, edgecolors="k", linewidths=0.4 if legend else 0.2,
                             label="simulated")
-            k = int(np.argmin(smoothed_loss(t)))
+            k = int(np.flatnonzero(t.point == choose({t.name: t}, t.features).point)[0])  # the table alone
             ax.scatter([np.radians(t.tilt_deg[k])], [t.height_ratio[k]], s=260 if legend else 70, facecolors="none",
                        edgecolors="m", linewidths=1.6 if legend else 1.0, label="robust choice")
         if (~ok).any():
@@ -63,8 +63,8 @@ def _draw_fan(ax, t: Table | None, norm, legend: bool = False):
 
 def plot_landscape(table_dir: str | Path, out: str | Path) -> Path:
     """Loss landscape: radius = height ratio, angle = tilt, colour = loss (mm); failed
-    runs as red crosses, not-simulated fan points as small grey dots, the chosen
-    (smoothed-best) point circled."""
+    runs as red crosses, not-simulated fan points as small grey dots, the robust
+    choice (select.choose on this table alone) circled."""
     plt = _plt()
     t = load_table(table_dir)
     fig, ax = plt.subplots(figsize=(6.2, 5.2), subplot_kw={"projection": "polar"})
