@@ -82,3 +82,41 @@ def test_subspace_settings_are_validated():
                 dict(subspace_max_share=0.0), dict(subspace_max_share=1.5)):
         with pytest.raises(ValueError, match="subspace"):
             SimConfig(**bad)
+
+
+def test_elements_touching_the_subsystem_assemble_its_block_and_gradient_exactly():
+    """The triangles and hinges touching the active vertices give the subsystem's rows of
+    the Newton matrix and gradient bit for bit (the simulator evaluates only them)."""
+    from clothfold_ros.sim import bending, membrane
+    from clothfold_ros.sim.pattern import scatter_gradient
+    from clothfold_ros.sim.subspace import element_subset
+
+    cotton = MATERIALS["cotton"]
+    v, f = rectangle(0.03, 0.02, 2e-5, 0.0)
+    hinges = bending.hinges(f)
+    pat = HessianPattern(3 * len(v), [element_dofs(f), element_dofs(hinges)], f)
+    rng = np.random.default_rng(1)
+    x = v + 1e-3 * rng.normal(size=v.shape)
+    shape, area = membrane.rest_shape(v, f)
+    theta, weight = bending.rest_state(v, hinges)
+    lam, mu = cotton.lame
+
+    def derivatives(t, k):
+        _, gm, hm = membrane.membrane_derivatives(x, f[t], shape[t], area[t] * cotton.thickness, lam, mu,
+                                                  membrane.PROJECT_CLAMP, True)
+        _, gb, hb = bending.bending_derivatives(x, hinges[k], theta[k], weight[k], cotton.bending_stiffness, True)
+        g = scatter_gradient(pat.ndof, element_dofs(f[t]), gm) + scatter_gradient(pat.ndof, element_dofs(hinges[k]), gb)
+        return g, [hm, hb]
+
+    active = rng.random(len(v)) < 0.2
+    sub = subsystem(pat.block_rows, pat.indices, active)
+    part = element_subset(active, f, hinges, pat.block_slots)
+    assert not active[f[np.setdiff1d(np.arange(len(f)), part.triangles)]].any()
+    g_all, h_all = derivatives(slice(None), slice(None))
+    g_sub, h_sub = derivatives(part.triangles, part.hinges)
+    diag = np.ones(pat.ndof)
+    full = pat.assemble(h_all, 1.0, diag)
+    mine = pat.assemble(h_sub, 1.0, diag, element_slots=part.block_slots)
+    assert np.array_equal(sub.values(mine), sub.values(full))
+    assert np.array_equal(g_sub[sub.dofs], g_all[sub.dofs])
+    assert not np.array_equal(mine, full)  # the other blocks were left out

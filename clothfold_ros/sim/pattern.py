@@ -273,10 +273,14 @@ class HessianPattern:
         return np.unique(a * nv + b)
 
     def assemble(self, element_hessians: list[np.ndarray], scale: float, diagonal: np.ndarray,
-                 contact: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-        """Block values of scale * sum(element Hessians) + diag(diagonal) (+ contact entries)."""
+                 contact: tuple[np.ndarray, np.ndarray] | None = None,
+                 element_slots: list[np.ndarray] | None = None) -> np.ndarray:
+        """Block values of scale * sum(element Hessians) + diag(diagonal) (+ contact entries).
+
+        element_slots: the block slots of the elements given when they are a subset of each
+        element list (rows of `block_slots`); default: every element, in order."""
         base = np.zeros(BLOCK * BLOCK * self.base_nnz)
-        for slots, blocks in zip(self.block_slots, element_hessians):
+        for slots, blocks in zip(self.block_slots if element_slots is None else element_slots, element_hessians):
             _scatter_blocks(base, slots, blocks, scale)
         base[self._base_diag] += diagonal
         if self.nnz == self.base_nnz:

@@ -26,7 +26,7 @@ from .friction import scatter_stencil_hessians
 from .grasp import Grasp, grasp
 from .linear_solver import spd_solver
 from .pattern import HessianPattern, element_dofs, scatter_gradient
-from .subspace import Subsystem, active_vertices, subsystem
+from .subspace import ElementSubset, Subsystem, active_vertices, element_subset, subsystem
 
 
 class SimulationFailure(RuntimeError):
@@ -126,6 +126,7 @@ class ClothSimulator:
         self._solver = spd_solver(cfg.linear_solver, cfg.solver_threads, cfg.linear_precision)
         self._sub_solver = spd_solver(cfg.linear_solver, cfg.solver_threads, cfg.linear_precision)
         self._sub_analysed = None  # the subsystem whose pattern the subspace solver holds
+        self._elements_of, self._elements = None, None  # the subsystem whose element subset is cached, that subset
         self._project = membrane.PROJECT_ABS if cfg.psd_projection == "abs" else membrane.PROJECT_CLAMP
         self.contact.psd = ipctk.PSDProjectionMethod.ABS if cfg.psd_projection == "abs" else ipctk.PSDProjectionMethod.CLAMP
 
@@ -157,14 +158,25 @@ class ClothSimulator:
         return np.unique(np.concatenate([g.vertex_ids for g in self.grasps.values()]))
 
     # -- energy -------------------------------------------------------------------------
-    def _elastic(self, x: np.ndarray, want_hess: bool = True):
-        """Elastic energy (J), per-element gradients and PSD Hessians (membrane, bending)."""
-        em, gm, hm = membrane.membrane_derivatives(x, self.triangles, self._shape, self._volume, self._lame_lambda,
-                                                   self._lame_mu, self._project, want_hess)
+    def _elastic(self, x: np.ndarray, want_hess: bool = True, elements: ElementSubset | None = None):
+        """Elastic energy (J), per-element gradients and PSD Hessians (membrane, bending), of
+        every element or of the subset `elements`."""
+        t, k = (slice(None), slice(None)) if elements is None else (elements.triangles, elements.hinges)
+        em, gm, hm = membrane.membrane_derivatives(x, self.triangles[t], self._shape[t], self._volume[t],
+                                                   self._lame_lambda, self._lame_mu, self._project, want_hess)
         eb, gb, hb = bending.bending_derivatives(
-            x, self._hinges, self._theta_rest, self._hinge_weight, self._k_bend, want_hess
+            x, self._hinges[k], self._theta_rest[k], self._hinge_weight[k], self._k_bend, want_hess
         )
         return em + eb, gm, hm, gb, hb
+
+    def _elastic_system(self, x: np.ndarray, elements: ElementSubset | None = None):
+        """h^2 x the elastic gradient (ndof,) and the element Hessians (membrane, bending) of
+        every element or of `elements` (then the gradient holds only their terms)."""
+        _, gm, hm, gb, hb = self._elastic(x, True, elements)
+        tri_dofs, hinge_dofs = (self._tri_dofs, self._hinge_dofs) if elements is None else \
+            (self._tri_dofs[elements.triangles], self._hinge_dofs[elements.hinges])
+        g = self.dt**2 * (scatter_gradient(self.ndof, tri_dofs, gm) + scatter_gradient(self.ndof, hinge_dofs, gb))
+        return g, [hm, hb]
 
     def _elastic_energy(self, x: np.ndarray) -> float:
         return membrane.membrane_energy(x, self.triangles, self._shape, self._volume, self._lame_lambda, self._lame_mu) + \
@@ -333,6 +345,14 @@ class ClothSimulator:
                 p[~np.repeat(sub.active, 3)] = 0.0
         return p.reshape(-1, 3)
 
+    def _element_subset(self, sub: Subsystem) -> ElementSubset:
+        """The triangles and hinges touching the subsystem's vertices (cached per subsystem):
+        the only elements in its rows of the Newton system and in its gradient."""
+        if self._elements_of is not sub:
+            self._elements = element_subset(sub.active, self.triangles, self._hinges, self._pattern.block_slots)
+            self._elements_of = sub
+        return self._elements
+
     def _subsystem(self, p: np.ndarray) -> Subsystem | None:
         """The subsystem of the vertices that the full direction p (N, 3) moves faster than
         `SimConfig.subspace_threshold` and their neighbours; None where that is most of them."""
@@ -390,16 +410,21 @@ class ClothSimulator:
                 phases["collisions"] += time.perf_counter() - tic
             tic = time.perf_counter()
             u = x - x_prev
-            _, gm, hm, gb, hb = self._elastic(x)
+            elements = None if sub is None else self._element_subset(sub)
+            g_elastic, h_elastic = self._elastic_system(x, elements)
             phases["elastic"] += time.perf_counter() - tic
             tic = time.perf_counter()
-            grad = self._mass_dof * (x - x_hat).ravel()
-            grad += h2 * (
-                scatter_gradient(self.ndof, self._tri_dofs, gm) + scatter_gradient(self.ndof, self._hinge_dofs, gb)
-            )
-            if pull is not None:
-                grad += np.repeat(pull[0], 3) * (x - pull[1]).ravel()
-            grad += self.contact.gradient(col, x, u)
+            g_inertia = self._mass_dof * (x - x_hat).ravel()
+            g_pull = None if pull is None else np.repeat(pull[0], 3) * (x - pull[1]).ravel()
+            g_contact = self.contact.gradient(col, x, u)
+
+            def gradient(g_el):
+                g = g_inertia + g_el
+                if g_pull is not None:
+                    g += g_pull
+                return g + g_contact
+
+            grad = gradient(g_elastic)
             contact = None
             hc = self.contact.hessian(col, x)
             if it == 1:  # prune stale contact entries, add the ones deferred in the last solve
@@ -413,18 +438,31 @@ class ClothSimulator:
             friction_hessians = friction.hessians(u) if len(friction) else None
             phases["contact_derivatives"] += time.perf_counter() - tic
             tic = time.perf_counter()
-            data = self._pattern.assemble([hm, hb], h2, diag, contact)
-            if friction_hessians is not None:
-                scatter_stencil_hessians(data, self._friction_slots(friction), friction_hessians)
+
+            def assemble(h_el, slots):
+                data = self._pattern.assemble(h_el, h2, diag, contact, slots)
+                if friction_hessians is not None:
+                    scatter_stencil_hessians(data, self._friction_slots(friction), friction_hessians)
+                return data
+
+            data = assemble(h_elastic, None if elements is None else elements.block_slots)
             phases["assembly"] += time.perf_counter() - tic
             tic = time.perf_counter()
             if sub is not None and sub_version != self._pattern.version:  # the pattern grew: same vertices
                 sub, sub_version = subsystem(self._pattern.block_rows, self._pattern.indices, sub.active), \
                     self._pattern.version
+                self._elements_of = sub  # the same vertices: the same elements
             p = self._direction(data, grad, when, sub)
             residual = float(np.sqrt(np.mean(np.sum(p**2, axis=1)))) / h
             if sub is not None and residual <= cfg.newton_tol:  # the moving cloth has converged: check all of it
                 sub = None
+                phases["linear_solve"] += time.perf_counter() - tic
+                tic = time.perf_counter()
+                g_elastic, h_elastic = self._elastic_system(x)
+                grad = gradient(g_elastic)
+                data = assemble(h_elastic, None)
+                phases["elastic"] += time.perf_counter() - tic
+                tic = time.perf_counter()
                 p = self._direction(data, grad, when)
                 residual = float(np.sqrt(np.mean(np.sum(p**2, axis=1)))) / h
             full_direction = sub is None

@@ -65,3 +65,21 @@ def active_vertices(step: np.ndarray, threshold: float, block_rows: np.ndarray, 
         grown[block_rows[active[indices]]] = True
         active = grown
     return active
+
+
+@dataclass(frozen=True, eq=False)
+class ElementSubset:
+    """The elements touching a subsystem's vertices: indices into the triangles and hinges,
+    and their rows of the pattern's element block slots (`HessianPattern.block_slots`)."""
+
+    triangles: np.ndarray  # (m,) triangle indices
+    hinges: np.ndarray  # (k,) hinge indices
+    block_slots: list[np.ndarray]  # [triangle slots (m, ...), hinge slots (k, ...)]
+
+
+def element_subset(active: np.ndarray, triangles: np.ndarray, hinges: np.ndarray,
+                   block_slots: list[np.ndarray]) -> ElementSubset:
+    """Triangles (M, 3) and hinges (H, 4) with at least one vertex in `active` (N,) bool."""
+    t = np.flatnonzero(active[triangles].any(axis=1))
+    k = np.flatnonzero(active[hinges].any(axis=1))
+    return ElementSubset(t, k, [block_slots[0][t], block_slots[1][k]])
