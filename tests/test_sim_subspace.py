@@ -120,3 +120,42 @@ def test_elements_touching_the_subsystem_assemble_its_block_and_gradient_exactly
     assert np.array_equal(sub.values(mine), sub.values(full))
     assert np.array_equal(g_sub[sub.dofs], g_all[sub.dofs])
     assert not np.array_equal(mine, full)  # the other blocks were left out
+
+
+def test_subspace_follows_a_pattern_that_grows_within_an_iteration(monkeypatch):
+    """Contact blocks that join the pattern in a subspace iteration (after its elements were
+    chosen) renumber the blocks: the subsystem is rebuilt before the solve, so the run still
+    matches full Newton. The growth is forced: every contact Hessian brings a new (zero)
+    block between two far-apart vertices."""
+    from clothfold_ros.sim.contact import ContactModel
+
+    real = ContactModel.hessian
+    calls = {"n": 0}
+
+    def growing(self, col, x):
+        h = real(self, col, x)
+        n = len(x)
+        i, j = calls["n"] % (n // 2), n - 1 - calls["n"] % (n // 2)
+        calls["n"] += 1
+        dofs = (3 * np.array([i, j])[:, None] + np.arange(3)).ravel()
+        spring = 1e-30 * np.kron(np.array([[1.0, -1.0], [-1.0, 1.0]]), np.eye(3))  # PSD, negligible
+        extra = sp.coo_matrix((spring.ravel(), (np.repeat(dofs, 6), np.tile(dofs, 6))), shape=(3 * n, 3 * n))
+        return extra.tocsc() if h is None else (h + extra).tocsc()
+
+    monkeypatch.setattr(ContactModel, "hessian", growing)
+
+    def run(threshold: float):
+        cotton = MATERIALS["cotton"]
+        v, f = rectangle(0.1, 0.02, 4e-6, 2.0 * cotton.thickness)
+        v[:, 2] += 2.0 * np.maximum(v[:, 0] - 0.08, 0.0)
+        sim = ClothSimulator(v, f, cotton, 0.5, SimConfig(subspace_threshold=threshold, pattern_growth_iterations=400))
+        versions = []
+        for _ in range(4):
+            sim.step()
+            versions.append(sim._pattern.version)
+        return sim, versions
+
+    full, _ = run(0.0)
+    sub, versions = run(1e-4)
+    assert sub.subspace_solves > 0 and versions[-1] > sub.subspace_solves  # it grew in subspace iterations too
+    assert np.linalg.norm(sub.x - full.x, axis=1).max() < SimConfig().newton_tol * SimConfig().dt
