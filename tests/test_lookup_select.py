@@ -248,3 +248,14 @@ def test_losses_within_the_tie_margin_go_to_the_middle_of_the_fan() -> None:
     far[mid] = 0.010  # 9 mm worse: its smoothed loss (a mean with its neighbours) leaves the margin
     t = _table("shape1", far)
     assert choose({"shape1": t}, t.features).point != mid
+
+
+def test_a_partial_table_is_left_out_of_a_blend_not_intersected() -> None:
+    """A table within the blend margin that lacks some of the nearest table's points (a
+    partial sweep) is not blended in: it would restrict the choice to its few points."""
+    full = _table("shape1", _bowl(50))
+    partial = _table("zz_partial", np.array([0.001, 0.001, 0.001]), points=np.array([0, 1, 2]))
+    ch = choose({"shape1": full, "zz_partial": partial}, full.features)
+    assert ch.point == 50 and ch.scenarios == ("shape1",)
+    whole = _table("zz_whole", _bowl(52))  # a complete neighbour is blended in
+    assert choose({"shape1": full, "zz_whole": whole}, full.features).scenarios == ("shape1", "zz_whole")
