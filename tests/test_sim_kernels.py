@@ -376,3 +376,22 @@ def test_newton_system_whose_factorization_breaks_down_is_retried_with_a_diagona
             stats = sim.step()
             assert stats.regularized == stats.newton_iterations >= 1
             assert sim.x[:, 2].max() < 0.01  # it fell: the shifted directions are descent directions
+
+
+def test_pardiso_runs_small_systems_on_one_thread_with_the_same_bits():
+    """Systems below `parallel_unknowns` run on one thread (two threads were slower on the
+    3K fold's systems); larger ones on the threads asked; the solution is the same bits."""
+    from clothfold_ros.sim.linear_solver import PardisoSPD
+
+    pat, he, rng = _block_system(0.1, 2, psd=True)
+    n = pat.ndof
+    data = pat.assemble([he], 1.0, np.ones(n))
+    rhs = rng.normal(size=n)
+    solutions = {}
+    for limit, expected in ((n + 1, 1), (n, 2)):
+        s = PardisoSPD(threads=2, parallel_unknowns=limit)
+        s.set_pattern(pat.indptr, pat.indices, pat.block)
+        assert s._single.threads == s._double.threads == expected
+        s.factor(data)
+        solutions[expected] = s.solve(rhs)
+    assert np.array_equal(solutions[1], solutions[2])

@@ -18,7 +18,9 @@ normally in two single-precision solves (one refinement). Where the single facto
 fails or the refinement does not converge, that system is factorized in double precision
 (counted in `fallbacks`), so no solve returns an answer outside the tolerance.
 
-PARDISO runs on `threads` MKL threads (a thread-local setting, default 1). With more than
+PARDISO runs on `threads` MKL threads (a thread-local setting, default 1) for systems of at
+least `PARALLEL_UNKNOWNS` unknowns and on one thread below (the 3K fold's systems and the
+subspace systems of simulator.py: threading them made the fold slower). With more than
 one, MKL's conditional numerical reproducibility mode (MKL_CBWR, set before MKL loads)
 and PARDISO's CNR thread count (iparm[33]) keep results bit-for-bit reproducible for a
 given thread count; KMP_BLOCKTIME=0 (also set before MKL loads, unless set already) stops
@@ -51,6 +53,9 @@ _F64P = ctypes.POINTER(ctypes.c_double)
 _I64P = ctypes.POINTER(ctypes.c_int64)
 _MTYPE_SPD = 2
 PRECISIONS = ("double", "mixed")
+# Systems smaller than this run PARDISO on one thread: on the 3K fold (4.8K unknowns and the
+# smaller subspace systems) two threads made the fold 0.73x as fast, at 12K (18.7K) 1.14x.
+PARALLEL_UNKNOWNS = 10_000
 
 
 @nb.njit(cache=True)
@@ -126,8 +131,12 @@ class _Handle:
         self.n = self.block = 0
         self.indptr = self.indices = self.perm = None
 
-    def set_pattern(self, indptr: np.ndarray, indices: np.ndarray, block: int) -> None:
+    def set_pattern(self, indptr: np.ndarray, indices: np.ndarray, block: int, threads: int | None = None) -> None:
+        """A new pattern (analysed at the next factorization), solved on `threads` (None: as set)."""
         self.free()
+        if threads is not None:
+            self.threads = threads
+            self.iparm[33] = threads if threads > 1 else 0  # CNR: reproducible for this thread count
         self.indptr, self.indices, self.block = indptr, indices, block
         self.n = len(indptr) - 1
         self.iparm[36] = block if block > 1 else 0  # BSR with this block size
@@ -184,11 +193,13 @@ class PardisoSPD:
     ORDERINGS = {"minimum_degree": 0, "metis": 2}  # iparm[1]
 
     def __init__(self, ordering: str = "minimum_degree", refinement_steps: int = 0, threads: int = 1,
-                 precision: str = "mixed", tolerance: float = 1e-8, max_refinements: int = 8) -> None:
+                 precision: str = "mixed", tolerance: float = 1e-8, max_refinements: int = 8,
+                 parallel_unknowns: int = PARALLEL_UNKNOWNS) -> None:
         """ordering: fill-reducing ordering (minimum degree fills less than METIS on these cloth
         matrices); refinement_steps: PARDISO's own refinement steps per double solve (0: with
         the diagonal scaling the residual is ~1e-13 without); threads: MKL threads
-        (reproducible per count); precision: "mixed" (single factorization, double
+        (reproducible per count), used for systems of at least `parallel_unknowns` unknowns
+        (smaller ones run on one); precision: "mixed" (single factorization, double
         refinement to `tolerance`, relative residual, in at most `max_refinements` steps)
         or "double"."""
         if not _HAVE_PARDISO:
@@ -203,6 +214,7 @@ class PardisoSPD:
             raise ValueError("tolerance must be in (0, 1) and max_refinements >= 1")
         self._lib = pypardiso.PyPardisoSolver(mtype=_MTYPE_SPD)  # owns the mkl_rt handle
         self.threads = int(threads)
+        self.parallel_unknowns = int(parallel_unknowns)
         self.precision = precision
         self.tolerance = float(tolerance)
         self.max_refinements = int(max_refinements)
@@ -223,9 +235,11 @@ class PardisoSPD:
         self._indptr = np.ascontiguousarray(indptr, dtype=np.int32)
         self._indices = np.ascontiguousarray(indices, dtype=np.int32)
         self._block = int(block)
+        unknowns = (len(self._indptr) - 1) * self._block
+        threads = self.threads if unknowns >= self.parallel_unknowns else 1
         for h in (self._double, self._single):
             if h is not None:
-                h.set_pattern(self._indptr, self._indices, self._block)
+                h.set_pattern(self._indptr, self._indices, self._block, threads)
 
     def factor(self, data: np.ndarray) -> None:
         self._data = np.ascontiguousarray(data, dtype=float)
