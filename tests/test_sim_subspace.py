@@ -159,3 +159,15 @@ def test_subspace_follows_a_pattern_that_grows_within_an_iteration(monkeypatch):
     sub, versions = run(1e-4)
     assert sub.subspace_solves > 0 and versions[-1] > sub.subspace_solves  # it grew in subspace iterations too
     assert np.linalg.norm(sub.x - full.x, axis=1).max() < SimConfig().newton_tol * SimConfig().dt
+
+
+def test_a_newton_tolerance_below_the_subspace_threshold_solves_whole_systems():
+    """With tol < threshold a full step above tol can have no vertex above the threshold: that
+    empty subsystem is solved whole (it made PARDISO's analysis fail in a tight reference)."""
+    cotton = MATERIALS["cotton"]
+    v, f = rectangle(0.1, 0.02, 4e-6, 2.0 * cotton.thickness)
+    v[:, 2] += 2.0 * np.maximum(v[:, 0] - 0.08, 0.0)
+    cfg = SimConfig(newton_tol=1e-6, subspace_threshold=1e-4, max_newton_iterations=3000)
+    sim = ClothSimulator(v, f, cotton, 0.5, cfg)
+    stats = [sim.step() for _ in range(3)]
+    assert all(s.residual <= 1e-6 for s in stats)

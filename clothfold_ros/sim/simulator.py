@@ -355,11 +355,12 @@ class ClothSimulator:
 
     def _subsystem(self, p: np.ndarray) -> Subsystem | None:
         """The subsystem of the vertices that the full direction p (N, 3) moves faster than
-        `SimConfig.subspace_threshold` and their neighbours; None where that is most of them."""
+        `SimConfig.subspace_threshold` and their neighbours; None where that is most of them
+        or none (a Newton tolerance below the threshold: then every direction is full)."""
         cfg, pat = self.config, self._pattern
         active = active_vertices(p, cfg.subspace_threshold * self.dt, pat.block_rows, pat.indices, cfg.subspace_rings)
-        if active.sum() > cfg.subspace_max_share * len(active):
-            return None
+        if not active.any() or active.sum() > cfg.subspace_max_share * len(active):
+            return None  # nothing above the threshold (a tolerance below it) or most of the cloth
         return subsystem(pat.block_rows, pat.indices, active)
 
     def _factor_solve(self, solver, scaled: np.ndarray, diag_slots: np.ndarray, rhs: np.ndarray,
