@@ -36,8 +36,8 @@ def run(args: argparse.Namespace) -> int:
     except (FileNotFoundError, ValueError, RuntimeError) as err:
         print(f"clothfold regret: {err}", file=sys.stderr)
         return 2
-    print(text)
-    if args.out:
+    if args.out:  # before printing: a closed stdout (| head) must not lose the file
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(text + "\n")
+    print(text)
     return 0

@@ -111,8 +111,9 @@ def write_info(d: str | Path, info: dict) -> None:
 
 
 def is_finished(d: str | Path) -> bool:
-    """True when a table has been written and no sweep is running in `d`."""
-    return (Path(d) / PROVENANCE).exists() and not (Path(d) / LOCK).exists()
+    """True when a table has been written and no sweep is running in `d` (a lock left by a
+    killed sweep does not count)."""
+    return (Path(d) / PROVENANCE).exists() and lock_owner(d) is None
 
 
 def is_complete(d: str | Path) -> bool:
@@ -257,6 +258,24 @@ def table_dirs(root: str | Path) -> list[Path]:
 
 
 # -- one sweep per directory --------------------------------------------------------------------
+def lock_owner(d: str | Path) -> int | None:
+    """The pid of the live sweep holding `d`'s lock; None when unlocked or when the lock's
+    owner is gone (a sweep killed by a signal leaves its lock file behind)."""
+    try:
+        pid = int((Path(d) / LOCK).read_text() or 0)
+    except (FileNotFoundError, ValueError):
+        return None
+    if pid <= 0:
+        return None
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return None
+    except PermissionError:  # alive, another user's
+        pass
+    return pid
+
+
 class Lock:
     """One sweep per directory: a lock file holding the owner's pid (a stale lock of a
     dead process is taken over)."""
@@ -272,14 +291,10 @@ class Lock:
                 os.close(fd)
                 return self
             except FileExistsError:
-                try:
-                    pid = int(self.path.read_text() or 0)
-                    os.kill(pid, 0)
-                except (ValueError, ProcessLookupError, FileNotFoundError):
+                pid = lock_owner(self.path.parent)
+                if pid is None:
                     self.path.unlink(missing_ok=True)  # stale: its owner is gone
                     continue
-                except PermissionError:
-                    pass
                 raise RuntimeError(f"another sweep (pid {pid}) is running in {self.path.parent}")
         raise RuntimeError(f"could not lock {self.path.parent}")
 

@@ -1,0 +1,110 @@
+"""Where the lookup tables of a tables root stand: runs so far, failures, best point, cost.
+
+Read from each scenario's `runs.jsonl` (so it is current while a sweep runs, unlike a
+table written by `finish`) and its `provenance.json` when one exists (the fan points the
+sweep was asked for; otherwise the whole fan). Pure: the standard library and numpy.
+"""
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..trajectory import fan
+from .scenario import SCENARIOS, generation_order
+from .sweep_dir import PROVENANCE, RUNS, best_row, lock_owner, read_runs
+
+FAN_SIZE = len(fan())
+BEGIN = "<!-- table-status (clothfold tables) -->"
+END = "<!-- /table-status -->"
+
+
+@dataclass(frozen=True)
+class TableStatus:
+    """One scenario's sweep directory as it stands."""
+
+    scenario: str
+    runs: int  # fan points recorded in runs.jsonl
+    wanted: int  # fan points the sweep covers (its provenance, else the whole fan)
+    failed: int
+    best: dict | None  # the successful row of least loss
+    cpu_s: list[float]  # each run's CPU seconds (its wall time where a row predates cpu_time_s)
+    sweeping: bool  # a live sweep holds the directory's lock
+
+    @property
+    def complete(self) -> bool:
+        return self.runs >= self.wanted > 0
+
+    @property
+    def median_cpu_s(self) -> float:
+        return float(np.median(self.cpu_s)) if self.cpu_s else float("nan")
+
+    @property
+    def cpu_hours_to_go(self) -> float:
+        """Missing runs times the median run so far (NaN before the first run)."""
+        return (self.wanted - self.runs) * self.median_cpu_s / 3600.0 if self.cpu_s else float("nan")
+
+    @property
+    def state(self) -> str:
+        if self.runs == 0:
+            return "not started"
+        word = "complete" if self.complete else "partial"
+        return word + (", sweeping" if self.sweeping else "")
+
+
+def _run_cpu_s(row: dict) -> float:
+    return float(row.get("cpu_time_s") or row.get("wall_time_s") or 0.0)
+
+
+def table_status(d: str | Path, name: str | None = None) -> TableStatus:
+    """The status of one sweep directory (which need not exist yet)."""
+    d = Path(d)
+    name = name or d.name
+    rows = read_runs(d / RUNS) if (d / RUNS).exists() else []
+    wanted = FAN_SIZE
+    if (d / PROVENANCE).exists():
+        wanted = len(json.loads((d / PROVENANCE).read_text()).get("fan_points", [])) or FAN_SIZE
+    return TableStatus(name, len(rows), wanted, sum(not r["success"] for r in rows), best_row(rows),
+                       [_run_cpu_s(r) for r in rows], lock_owner(d) is not None)
+
+
+def tables_status(root: str | Path) -> list[TableStatus]:
+    """Every scenario of `SCENARIOS` under `root`, in generation order."""
+    return [table_status(Path(root) / n, n) for n in generation_order(list(SCENARIOS))]
+
+
+def markdown(statuses: list[TableStatus]) -> str:
+    """A Markdown table of the statuses and a total line."""
+    lines = ["| scenario | runs / fan points | failed | best: point (h, tilt deg), loss mm | median CPU s per run "
+             "| CPU h so far | CPU h to go (at that median) | state |",
+             "|---|---|---|---|---|---|---|---|"]
+    for s in statuses:
+        b = s.best
+        best = "-" if b is None else \
+            f"{b['point']} ({b['height_ratio']:.3f}, {b['tilt_deg']:.1f}), {b['loss_m'] * 1e3:.2f}"
+        med = "-" if not s.cpu_s else f"{s.median_cpu_s:.0f}"
+        togo = "-" if not s.cpu_s else f"{s.cpu_hours_to_go:.1f}"
+        lines.append(f"| {s.scenario} | {s.runs} / {s.wanted} | {s.failed if s.runs else '-'} | {best} | {med} | "
+                     f"{sum(s.cpu_s) / 3600:.1f} | {togo} | {s.state} |")
+    runs = sum(s.runs for s in statuses)
+    wanted = sum(s.wanted for s in statuses)
+    done = [s.scenario for s in statuses if s.complete]
+    known = sum(s.cpu_hours_to_go for s in statuses if s.cpu_s)
+    unstarted = [s for s in statuses if not s.cpu_s]
+    total = (f"\n{runs} of {wanted} runs, {sum(s.failed for s in statuses)} failed; complete: "
+             f"{', '.join(done) if done else 'none'}. To go at each started table's median: {known:.1f} CPU h")
+    if unstarted:
+        total += f", plus {sum(s.wanted for s in unstarted)} runs of tables not started " \
+                 f"({', '.join(s.scenario for s in unstarted)})"
+    return "\n".join(lines) + total + "."
+
+
+def replace_block(text: str, block: str) -> str:
+    """`text` with the part between the BEGIN and END markers replaced by `block`."""
+    pattern = re.compile(re.escape(BEGIN) + r".*?" + re.escape(END), re.S)
+    if not pattern.search(text):
+        raise ValueError(f"no {BEGIN} ... {END} block")
+    return pattern.sub(lambda _: f"{BEGIN}\n{block}\n{END}", text, count=1)
