@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clothfold_ros.lookup.sweep import SweepSettings, fan_points, load_final, run_sweep
+from clothfold_ros.lookup.sweep import SweepSettings, fan_points, load_final, run_sweep, table_is_current
 from clothfold_ros.lookup.sweep_dir import read_runs
 from clothfold_ros.lookup.table import load_table, write_table
 
@@ -55,6 +55,17 @@ def test_resume_after_kill(tmp_path: Path) -> None:
     # every run records the code it ran with; the provenance counts them
     assert all(r["solver_commit"] for r in lines)
     assert sum(prov["run_commits"].values()) == len(POINTS) and "unrecorded" not in prov["run_commits"]
+    # a call with nothing left to run keeps the table and its provenance (date, commit) as they are
+    d = tmp_path / "T1"
+    assert table_is_current(d)
+    kept = {f: (d / f).read_bytes() for f in ("provenance.json", "table.csv", "finals.npz")}
+    again = subprocess.run(_sweep_cmd(tmp_path, POINTS), capture_output=True, text=True, timeout=120)
+    assert again.returncode == 0 and "up to date" in again.stdout, again.stderr
+    assert {f: (d / f).read_bytes() for f in kept} == kept
+    # a row the table does not hold yet (a sweep killed before tabulating) makes it stale
+    with open(runs, "a") as f:
+        f.write(json.dumps({**lines[0], "point": 5}) + "\n")
+    assert not table_is_current(d)
 
 
 def test_failures_are_recorded_not_dropped(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

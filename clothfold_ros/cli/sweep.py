@@ -40,7 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..lookup.scenario import scenario
-    from ..lookup.sweep import SweepSettings, fan_points, finish, run_sweep
+    from ..lookup.sweep import SweepSettings, fan_points, finish, run_sweep, table_is_current
 
     try:
         sc = scenario(args.scenario)
@@ -77,6 +77,9 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, FileNotFoundError, RuntimeError) as err:
         print(f"clothfold sweep: {err}", file=sys.stderr)
         return 2
+    if not rows and table_is_current(d):  # nothing new: keep the table and its provenance as they are
+        print(f"{sc.name}: no run left to do; {d / 'table.csv'} is up to date")
+        return 0
     table = finish(d, command, points)
     failed = sum(not r["success"] for r in rows)
     print(f"{sc.name}: {len(rows)} runs this call ({failed} failed) -> {table}")

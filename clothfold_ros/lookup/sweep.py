@@ -194,6 +194,20 @@ def stage_target(d: str | Path, garment: Garment) -> np.ndarray:
     return base
 
 
+def table_is_current(d: str | Path) -> bool:
+    """Whether <d>/table.csv and finals.npz already hold exactly the runs in runs.jsonl (then
+    `finish` would only rewrite the provenance's date and commit)."""
+    import csv
+
+    d = Path(d)
+    table = d / "table.csv"
+    if not table.exists() or not (d / layout.FINALS_NPZ).exists() or any((d / layout.FINALS).glob("*.npy")):
+        return False  # no table yet, or finals not packed
+    with table.open(newline="") as fh:
+        tabled = sorted(int(r["point"]) for r in csv.DictReader(fh))
+    return tabled == sorted(int(r["point"]) for r in layout.read_runs(d))
+
+
 def finish(d: str | Path, command: str, points: list[int]) -> Path:
     """Write the table (table.csv, provenance.json) of the sweep in `d` and pack its final
     states into finals.npz; returns the table.csv path."""
