@@ -2,7 +2,7 @@
 (iterations whose step is below --tail m/s), which cloth carries the remaining Newton step.
 
     python scripts/newton_profile.py [--area 2e-4] [--steps 40 70] [--h 0.4462 --tilt 51.43]
-                                     [--mu 0.5] [--config '{"eps_v": 1e-2}'] [--history]
+                                     [--mu 0.5] [--material cotton] [--config '{"eps_v": 1e-2}'] [--history]
 
 Prints the total iterations over steps 1..B, per step A..B its iterations (and with --history
 the residual RMS(|dx|)/dt of every iteration), and the share of the squared Newton step in
@@ -38,8 +38,8 @@ class ProfiledSimulator(ClothSimulator):
         self.tail, self.history, self.share, self.tail_iterations = tail, [], defaultdict(float), 0
         self.thickness = kwargs.get("material", args[2]).thickness
 
-    def _direction(self, data, grad, when):
-        p = super()._direction(data, grad, when)
+    def _direction(self, data, grad, when, sub=None):
+        p = super()._direction(data, grad, when, sub)
         n2 = np.sum(p**2, axis=1)
         r = float(np.sqrt(n2.mean())) / self.dt
         self.history.append(r)
@@ -60,18 +60,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--h", type=float, default=0.4462)
     ap.add_argument("--tilt", type=float, default=51.43)
     ap.add_argument("--mu", type=float, default=0.5)
+    ap.add_argument("--material", default="cotton", help="material preset (materials.MATERIALS)")
     ap.add_argument("--config", default="{}", help="SimConfig overrides as JSON")
     ap.add_argument("--tail", type=float, default=5e-3, help="tail: Newton steps below this (m/s)")
     ap.add_argument("--history", action="store_true")
     a = ap.parse_args(argv)
-    cot = material("cotton")
+    cot = material(a.material)
     g = make_shirt(1, max_area=a.area)
     start = flat_start(g, cot)
     spec = fold_spec("left_sleeve", g.keypoints(start))
     sim = ProfiledSimulator(start, g.triangles, cot, a.mu, SimConfig(**json.loads(a.config)), rest=start, tail=a.tail)
     episode = FoldEpisode(sim, spec, fold_target(start, spec, cot.thickness), 0.2)
     trajectory = FoldTrajectory(spec, a.h, a.tilt, 4.0)
-    print(f"{len(g.triangles)} triangles, h {a.h}, tilt {a.tilt}, mu {a.mu}, config {a.config}")
+    print(f"{len(g.triangles)} triangles, {cot.name}, h {a.h}, tilt {a.tilt}, mu {a.mu}, config {a.config}")
     episode.grasp()
     total = 0
     for k in range(1, a.steps[1] + 1):
@@ -86,7 +87,8 @@ def main(argv: list[str] | None = None) -> int:
             break
         total += stats.newton_iterations
         if k >= a.steps[0]:
-            line = f"step {k}: {stats.newton_iterations} iterations, {stats.line_search_halvings} halvings"
+            line = (f"step {k}: {stats.newton_iterations} iterations, {stats.line_search_halvings} halvings, "
+                    f"{stats.contacts} contacts")
             if a.history:
                 line += ": " + " ".join(f"{r:.1e}" for r in sim.history)
             print(line)
