@@ -1,0 +1,34 @@
+"""The solver diagnostics in scripts/ run against today's simulator (a tiny mesh, a few steps)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from clothfold_ros.lookup.sweep import SweepSettings, run_sweep
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _script(name: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(ROOT / "scripts" / name), *args], capture_output=True, text=True,
+                          timeout=300, cwd=ROOT)
+
+
+def test_newton_profile_runs_a_material_and_reports_iterations() -> None:
+    out = _script("newton_profile.py", "--area", "1e-2", "--steps", "1", "3", "--material", "thin_cotton",
+                  "--history")
+    assert out.returncode == 0, out.stderr
+    assert "thin_cotton" in out.stdout and "total Newton iterations, steps 1..3:" in out.stdout
+    assert out.stdout.count("contacts") == 3  # one line per profiled step
+
+
+def test_profile_table_run_profiles_a_sweep_point(tmp_path: Path) -> None:
+    run_sweep(SweepSettings("T1", max_area=1e-2), tmp_path / "T1", [], workers=1, progress=False)  # settings only
+    out = _script("profile_table_run.py", "T1", "96", "--tables", str(tmp_path), "--top", "5")
+    assert out.returncode == 0, out.stderr
+    assert '"point": 96' in out.stdout and '"success": true' in out.stdout
+    assert "Newton directions" in out.stdout and "function calls" in out.stdout
+    assert not (tmp_path / "T1" / "runs.jsonl").exists() or not (tmp_path / "T1" / "runs.jsonl").read_text()
+    bad = _script("profile_table_run.py", "T2", "96", "--tables", str(tmp_path))
+    assert bad.returncode == 2 and "no sweep settings" in bad.stderr
