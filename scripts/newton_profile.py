@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         total += stats.newton_iterations
         if k >= a.steps[0]:
             line = (f"step {k}: {stats.newton_iterations} iterations, {stats.line_search_halvings} halvings, "
-                    f"{stats.contacts} contacts")
+                    f"{stats.contacts} contacts, kappa {stats.kappa:.3g}")
             if a.history:
                 line += ": " + " ".join(f"{r:.1e}" for r in sim.history)
             print(line)
