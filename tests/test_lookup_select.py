@@ -259,3 +259,22 @@ def test_a_partial_table_is_left_out_of_a_blend_not_intersected() -> None:
     assert ch.point == 50 and ch.scenarios == ("shape1",)
     whole = _table("zz_whole", _bowl(52))  # a complete neighbour is blended in
     assert choose({"shape1": full, "zz_whole": whole}, full.features).scenarios == ("shape1", "zz_whole")
+
+
+def test_best_worst_marks_folded_over_cloth_by_its_facing() -> None:
+    from clothfold_ros.garment import make_shirt
+    from clothfold_ros.lookup.plot import _flipped
+    from clothfold_ros.materials import material
+    from clothfold_ros.sim.runner import flat_start
+
+    g = make_shirt(1, max_area=5e-3)
+    flat = flat_start(g, material("cotton"))
+    assert not _flipped(flat, g.triangles).any()  # the rest shirt faces up
+    folded = flat.copy()
+    left = folded[:, 0] < 0.0  # the left half folded over x = 0 onto the right half
+    folded[left, 0] *= -1.0
+    folded[left, 2] += 1e-3
+    flips = _flipped(folded, g.triangles)
+    all_left = left[g.triangles].all(axis=1)
+    all_right = (~left)[g.triangles].all(axis=1)
+    assert flips[all_left].all() and not flips[all_right].any()

@@ -132,9 +132,33 @@ def plot_overview(tables_root: str | Path, out: str | Path) -> Path:
     return _save(fig, out, 90)
 
 
+def _outline(ax, v: np.ndarray, tri: np.ndarray, **style) -> None:
+    """Outline (top-down silhouette) of the triangles `tri` of the mesh `v` (N, 3), m."""
+    import shapely
+
+    if len(tri) == 0:
+        return
+    shape = shapely.unary_union(shapely.polygons(v[tri][:, :, :2])).buffer(0)
+    for poly in getattr(shape, "geoms", [shape]):
+        if poly.is_empty:
+            continue
+        x, y = poly.exterior.xy
+        ax.plot(x, y, **style)
+
+
+def _flipped(v: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Triangles facing down (normal z < 0; the rest shirt's triangles face up): folded-over cloth."""
+    a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
+    return np.cross(b - a, c - a)[:, 2] < 0.0
+
+
 def plot_best_worst(table_dir: str | Path, out: str | Path) -> Path:
-    """Top-down views of the best and worst successful final states over the target."""
+    """Top-down views of the target and the best and worst successful final states: cloth
+    facing up in light grey, folded-over (face-down) cloth coloured by its height, higher
+    triangles drawn over lower ones; the target's silhouette and folded flap as dashed lines."""
     plt = _plt()
+    from matplotlib.colors import ListedColormap
+
     t = load_table(table_dir)
     ok = np.flatnonzero(t.success & np.isfinite(t.loss))
     if len(ok) == 0:
@@ -145,17 +169,34 @@ def plot_best_worst(table_dir: str | Path, out: str | Path) -> Path:
     fig, axes = plt.subplots(1, 3, figsize=(12, 4.2), sharex=True, sharey=True)
     panels = [("target", target, None)] + [(lab, finals[lab], k) for lab, k in picks]
     vmax = max(float(v[:, 2].max()) for _, v, _ in panels) * 1e3
+    target_flap = tri[_flipped(target, tri)]
+    face_up = ListedColormap(["0.82"])
     for ax, (lab, v, k) in zip(axes, panels):
-        ax.triplot(target[:, 0], target[:, 1], tri, color="0.75", lw=0.5)
-        tc = ax.tripcolor(v[:, 0], v[:, 1], tri, facecolors=v[tri, 2].mean(axis=1) * 1e3, cmap="magma",
-                          vmin=0.0, vmax=vmax, edgecolors="k", linewidth=0.2, alpha=0.85)
+        height = v[tri, 2].mean(axis=1) * 1e3
+        order = np.argsort(height, kind="stable")  # top layers last: seen from above
+        flipped = _flipped(v, tri)[order]
+        srt, h = tri[order], height[order]
+        ax.tripcolor(v[:, 0], v[:, 1], srt, facecolors=np.where(flipped, np.nan, 0.0), cmap=face_up,
+                     vmin=0.0, vmax=1.0, linewidth=0.0)
+        tc = ax.tripcolor(v[:, 0], v[:, 1], srt, facecolors=np.where(flipped, h, np.nan), cmap="plasma",
+                          vmin=0.0, vmax=vmax, linewidth=0.0)
+        _outline(ax, target, tri, color="k", lw=0.8, ls="--")
+        _outline(ax, target, target_flap, color="tab:green", lw=1.0, ls="--")
         if k is not None:
             ax.set_title(f"{lab}: h={t.height_ratio[k]:.2f} tilt={t.tilt_deg[k]:.1f} "
                          f"loss {t.loss[k] * 1e3:.1f} mm", fontsize=9)
         else:
-            ax.set_title(f"{t.name}: target (grey mesh in every panel)", fontsize=9)
+            ax.set_title(f"{t.name}: target", fontsize=9)
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
     axes[0].set_ylabel("y (m)")
-    fig.colorbar(tc, ax=axes, label="mean triangle height (mm)", shrink=0.8)
-    return _save(fig, out, 100)
+    fig.colorbar(tc, ax=axes, label="folded-over cloth: mean triangle height (mm)", shrink=0.8)
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    axes[1].legend(handles=[Patch(color="0.82", label="cloth facing up"),
+                            Line2D([], [], color="k", lw=0.8, ls="--", label="target outline"),
+                            Line2D([], [], color="tab:green", lw=1.0, ls="--", label="target's folded-over flap")],
+                   loc="upper center", bbox_to_anchor=(0.5, 0.0), borderaxespad=4.0, ncol=3, fontsize=8,
+                   frameon=False)  # below the x labels, whatever the panels' aspect
+    return _save(fig, out, 110)
