@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -51,9 +52,10 @@ def test_resume_after_kill(tmp_path: Path) -> None:
     assert sorted(t.point.tolist()) == sorted(POINTS)
     prov = json.loads((tmp_path / "T1" / "provenance.json").read_text())
     assert prov["complete"] and prov["resolution"]["max_area_m2"] == TINY["max_area"]
-    assert "clothfold sweep T1" in prov["command"] and prov["git_commit"]
+    assert "clothfold sweep T1" in prov["command"]
+    assert re.fullmatch(r"[0-9a-f]{40}(-dirty)?", prov["git_commit"]), prov["git_commit"]
     # every run records the code it ran with; the provenance counts them
-    assert all(r["solver_commit"] for r in lines)
+    assert all(re.fullmatch(r"[0-9a-f]{40}(-dirty)?", r["solver_commit"]) for r in lines)
     assert sum(prov["run_commits"].values()) == len(POINTS) and "unrecorded" not in prov["run_commits"]
     # a call with nothing left to run keeps the table and its provenance (date, commit) as they are
     d = tmp_path / "T1"
@@ -143,7 +145,7 @@ def test_end_angle_is_a_sweep_setting_and_legacy_sweeps_were_175(tmp_path: Path)
     assert not np.allclose(a.end_poses[0].position, b.end_poses[0].position)
 
 
-def test_table_only_writes_a_partial_table_and_stages_refuse_to_start_from_it(tmp_path: Path) -> None:
+def test_table_only_writes_a_partial_table_and_stages_refuse_to_start_from_it(tmp_path: Path, capsys) -> None:
     from clothfold_ros.cli import main
     from clothfold_ros.lookup.sweep_dir import is_complete
 
@@ -156,12 +158,16 @@ def test_table_only_writes_a_partial_table_and_stages_refuse_to_start_from_it(tm
     assert len(read_runs(tmp_path / "T1" / "runs.jsonl")) == 1  # nothing was simulated
     assert not is_complete(tmp_path / "T1")
     # other settings than the sweep's are refused, and an empty directory has nothing to tabulate
+    capsys.readouterr()
     assert main(["sweep", "T1", "--out", str(tmp_path), "--max-area", "2e-2", "--points", "96", "--table-only"]) == 2
+    assert "settings" in capsys.readouterr().err
     assert main(["sweep", "T2", "--out", str(tmp_path), "--max-area", area, "--table-only"]) == 2
+    assert "holds no runs" in capsys.readouterr().err
     # a sequence stage does not start from a partial table of the stage before it
     run_sweep(SweepSettings("shape1", **TINY), tmp_path / "shape1", [], workers=1, progress=False)
     assert main(["sweep", "shape1", "--out", str(tmp_path), "--max-area", area, "--points", "96",
                  "--table-only"]) == 2  # no runs yet
+    assert "holds no runs" in capsys.readouterr().err
     (tmp_path / "shape1" / "runs.jsonl").write_text(
         (tmp_path / "T1" / "runs.jsonl").read_text())  # one row stands in for a run
     assert main(["sweep", "shape1", "--out", str(tmp_path), "--max-area", area, "--points", "96,133",

@@ -1,0 +1,76 @@
+"""`clothfold regret`: the committed reports and the documented figures are the data's, and the
+command's --out / --partial / refusal paths."""
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from test_lookup_select import _bowl, _table, _write_table_dir
+
+from clothfold_ros.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+PARTIAL = re.compile(r"; partial tables left out: [^\n]*")  # partial tables enter no figure
+
+
+def _regret(capsys, *args: str) -> tuple[int, str, str]:
+    code = main(["regret", *args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _summary_rows(text: str) -> list[str]:
+    """The summary table's rows without the rule's label: '| 6 of 6 | 0.2 | 0.4 | 6 of 6 (100 %) |'."""
+    block = text.split("\n\n")[1]
+    return ["|" + line.split("|", 2)[2] for line in block.splitlines()[2:]]
+
+
+@pytest.mark.parametrize("root", ["config/tables", "config/tables_12k"])
+def test_committed_regret_report_is_the_tables(root: str, capsys) -> None:
+    code, out, err = _regret(capsys, "--tables", str(ROOT / root))
+    assert code == 0, err
+    committed = (ROOT / root / "regret.md").read_text()
+    assert PARTIAL.sub("", committed).strip() == PARTIAL.sub("", out).strip(), \
+        f"{root}/regret.md is stale: clothfold regret --tables {root} --out {root}/regret.md"
+
+
+def test_documented_regret_figures_are_the_tables(capsys) -> None:
+    readme, lookup = (ROOT / "README.md").read_text(), (ROOT / "docs" / "lookup.md").read_text()
+    for root, docs in (("config/tables_12k", {"README.md": readme, "docs/lookup.md": lookup}),
+                       ("config/tables", {"docs/lookup.md": lookup})):
+        code, out, err = _regret(capsys, "--tables", str(ROOT / root))
+        assert code == 0, err
+        rows = _summary_rows(out)
+        assert len(rows) == 4, out
+        for name, text in docs.items():
+            for row in rows:
+                assert row in text, f"{name} lacks the regret row {row!r} of {root}"
+
+
+def test_regret_writes_its_report_and_names_partial_tables(tmp_path: Path, capsys) -> None:
+    pts = np.arange(0, 134, 2)
+    _write_table_dir(tmp_path / "shape1", _table("shape1", _bowl(32)[pts], points=pts))
+    _write_table_dir(tmp_path / "T1", _table("T1", _bowl(40)[pts] + 0.001, points=pts))
+    _write_table_dir(tmp_path / "mu0.8", _table("mu0.8", _bowl(50)[pts[:10]], points=pts[:10]))
+    prov = tmp_path / "mu0.8" / "provenance.json"
+    prov.write_text(json.dumps({**json.loads(prov.read_text()), "complete": False}))
+
+    out_md = tmp_path / "reports" / "regret.md"
+    code, out, err = _regret(capsys, "--tables", str(tmp_path), "--out", str(out_md))
+    assert code == 0, err
+    assert out_md.read_text() == out  # the file is what was printed
+    assert out.startswith("2 tables: T1, shape1; partial tables left out: mu0.8 (10 points)")
+    assert all(r.startswith("| 2 of 2 |") for r in _summary_rows(out)[:3])
+
+    code, out, err = _regret(capsys, "--tables", str(tmp_path), "--partial")
+    assert code == 0, err
+    assert out.startswith("3 tables: T1, mu0.8, shape1; partial tables included: mu0.8 (10 points)")
+    assert "held out" in out and "| mu0.8 |" in out
+
+    (tmp_path / "T1" / "provenance.json").write_text(json.dumps({"complete": False}))
+    code, out, err = _regret(capsys, "--tables", str(tmp_path))
+    assert code == 2 and "at least two" in err
