@@ -205,6 +205,27 @@ def test_plots_write_png(tmp_path: Path) -> None:
         assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 5000
 
 
+
+def test_best_worst_shows_the_tables_best_and_worst_runs(tmp_path: Path, monkeypatch) -> None:
+    from clothfold_ros.lookup import plot
+
+    pts = np.arange(0, 134, 4)
+    loss = _bowl(40)[pts]
+    loss[5] = np.nan  # a failed run is neither best nor worst
+    _write_table_dir(tmp_path / "shape1", _table("shape1", loss, points=pts), with_finals=True)
+    figures = []
+    monkeypatch.setattr(plot, "_save", lambda fig, out, dpi: figures.append(fig) or Path(out))
+    plot.plot_best_worst(tmp_path / "shape1", tmp_path / "bw.png")
+    titles = [ax.get_title() for ax in figures[0].axes[:3]]
+    best, worst = int(np.nanargmin(loss)), int(np.nanargmax(loss))
+    assert titles[0] == "shape1: target"
+    assert titles[1] == f"best: h={FAN[pts[best], 0]:.2f} tilt={FAN[pts[best], 1]:.1f} loss {loss[best] * 1e3:.1f} mm"
+    assert titles[2] == f"worst: h={FAN[pts[worst], 0]:.2f} tilt={FAN[pts[worst], 1]:.1f} loss {loss[worst] * 1e3:.1f} mm"
+    _write_table_dir(tmp_path / "none", _table("T1", np.full(3, np.nan), points=np.arange(3)), with_finals=True)
+    with pytest.raises(ValueError, match="no successful run"):
+        plot.plot_best_worst(tmp_path / "none", tmp_path / "none.png")
+
+
 def test_overview_draws_every_group_with_partial_and_missing_tables(tmp_path: Path) -> None:
     assert sorted({n for names in SCENARIO_GROUPS.values() for n in names}) == sorted(SCENARIOS)
     assert all("shape1" in names for names in SCENARIO_GROUPS.values())
