@@ -226,7 +226,7 @@ def test_best_worst_shows_the_tables_best_and_worst_runs(tmp_path: Path, monkeyp
         plot.plot_best_worst(tmp_path / "none", tmp_path / "none.png")
 
 
-def test_overview_draws_every_group_with_partial_and_missing_tables(tmp_path: Path) -> None:
+def test_overview_draws_every_group_with_partial_and_missing_tables(tmp_path: Path, monkeypatch) -> None:
     assert sorted({n for names in SCENARIO_GROUPS.values() for n in names}) == sorted(SCENARIOS)
     assert all("shape1" in names for names in SCENARIO_GROUPS.values())
     loss = _bowl(40)[::4]
@@ -237,6 +237,35 @@ def test_overview_draws_every_group_with_partial_and_missing_tables(tmp_path: Pa
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 20000
     with pytest.raises(FileNotFoundError):
         plot_overview(tmp_path / "absent", tmp_path / "x.png")
+    # what the figure says: the two tables with their point counts, every other scenario without a table
+    from clothfold_ros.lookup import plot
+
+    figures = []
+    monkeypatch.setattr(plot, "_save", lambda fig, out, dpi: figures.append(fig) or Path(out))
+    plot_overview(tmp_path, tmp_path / "again.png")
+    titles = [ax.get_title() for ax in figures[0].axes if ax.name == "polar" and ax.get_visible()]
+    assert len(titles) == sum(len(names) for names in SCENARIO_GROUPS.values())
+    assert titles.count("shape1 (default)\n34/134 points") == len(SCENARIO_GROUPS)
+    assert "mu0.8\n10/134 points" in titles
+    others = [t for t in titles if not t.startswith(("shape1", "mu0.8"))]
+    assert others and all(t.endswith("no table") for t in others), others
+
+
+def test_plot_command_overview_and_refusals(tmp_path: Path, capsys) -> None:
+    from clothfold_ros.cli import main
+
+    _write_table_dir(tmp_path / "t" / "shape1", _table("shape1", _bowl(40)[::4], points=np.arange(0, 134, 4)),
+                     with_finals=True)
+    assert main(["plot", "--overview", "--tables", str(tmp_path / "t")]) == 0
+    assert (tmp_path / "t" / "landscapes.png").read_bytes()[:4] == b"\x89PNG"
+    assert main(["plot", "shape1", "--tables", str(tmp_path / "t"), "--out", str(tmp_path / "o")]) == 0
+    assert (tmp_path / "o" / "shape1" / "best_worst.png").is_file()
+    capsys.readouterr()
+    assert main(["plot", "nosuch", "--tables", str(tmp_path / "t")]) == 1
+    assert "nosuch" in capsys.readouterr().err
+    (tmp_path / "empty").mkdir()
+    assert main(["plot", "--tables", str(tmp_path / "empty")]) == 2
+    assert "no tables under" in capsys.readouterr().err
 
 
 def test_scenarios_and_features() -> None:
