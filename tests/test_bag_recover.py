@@ -133,3 +133,27 @@ def test_cli_info_and_recover_without_traceback(bag, tmp_path):
     assert 0 < n < N and f"recovered {n} messages" in rec.stdout
     info2 = subprocess.run(cmd + ["bag", "info", str(fixed)], capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert info2.returncode == 0 and f"Messages:          {n}" in info2.stdout
+
+
+def test_damaged_summary_or_footer_is_a_bag_error_never_wrong_counts(bag, tmp_path):
+    """mcap's reader does not check the summary CRC: one flipped byte in the summary once gave a
+    /count of 0 or messages out of order without an error. Every flip in the summary section and
+    the footer's fields is a BagError now (or, where it changes nothing the reader uses, the bag reads
+    exactly as before)."""
+    import struct
+
+    data = bag.read_bytes()
+    footer = len(data) - 8 - 29
+    _, _, summary_start, _, crc = struct.unpack("<BQQQI", data[footer:footer + 29])
+    assert crc != 0 and 0 < summary_start < footer  # the recorder writes the CRC
+    expected = _values(bag)
+    step = max(1, (footer + 25 - summary_start) // 40)
+    offsets = list(range(summary_start, footer + 25, step)) + [footer + 9, footer + 17]
+    for off in offsets:
+        damaged = bytearray(data)
+        damaged[off] ^= 0x5A
+        path = tmp_path / "damaged.mcap"
+        path.write_bytes(bytes(damaged))
+        with pytest.raises(BagError, match="damaged|truncated"):
+            _values(path)
+    assert _values(bag) == expected

@@ -241,3 +241,67 @@ def _with_context(init, ctx):
         kwargs.setdefault("context", ctx)
         return init(self, *args, **kwargs)
     return wrapped
+
+
+def test_one_far_return_in_a_cloud_is_a_clear_error():
+    """A single finite but absurd coordinate (1e30 m) once overflowed the raster index and killed the node."""
+    from clothfold_ros.perception.estimator import BadCloudError, top_view
+
+    rng = np.random.default_rng(1)
+    cloth = np.column_stack([rng.uniform(-0.2, 0.2, (20000, 2)), np.full(20000, 0.001)])
+    top_view(cloth)
+    for far in (1e30, 1e6, np.finfo(np.float32).max):
+        with pytest.raises(BadCloudError, match="not a shirt on a table"):
+            top_view(np.vstack([cloth, [[far, 0.0, 0.001]]]))
+
+
+def test_keypoint_node_survives_bad_stamps_names_and_durations(monkeypatch):
+    """Messages that once killed keypoint_node: a negative stamp, a keypoint name the model lacks
+    (after a fold), a fold duration that overflows nanoseconds. Each is logged and skipped."""
+    import math
+
+    import rclpy
+
+    from clothfold_ros.nodes.keypoint_node import KeypointNode
+
+    g = make_shirt(1, max_area=2e-3)
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-p", "source:=cloth_state", "-p", "max_area:=0.002"], context=ctx, domain_id=175)
+    try:
+        monkeypatch.setattr(rclpy.node.Node, "__init__", _with_context(rclpy.node.Node.__init__, ctx))
+        node = KeypointNode()
+        published, errors = [], []
+        monkeypatch.setattr(node.pub, "publish", published.append)
+        monkeypatch.setattr(node, "call_later", lambda call: call[0](call[1]))
+        logger = node.get_logger()
+        monkeypatch.setattr(type(logger), "error", lambda self, msg, **kw: errors.append(msg))
+        state = lambda t: rc.cloth_state_to_msg(g.vertices, g.triangles, g.keypoint_ids, T, t)  # noqa: E731
+
+        negative = state(1 * S)
+        negative.header.stamp.sec = -1
+        node.on_state(negative)
+        assert published == [] and "stamp is negative" in errors[-1]
+
+        spec = fold_spec("left_sleeve", g.keypoints())
+        huge = rc.fold_spec_to_msg(rc.PlannedFold(spec, 0.5, 30.0, 4.0, 0.2, 0, 2 * S))
+        huge.duration = 1e300
+        node.on_active(huge)
+        assert node.active is None and "duration" in errors[-1]
+        node.on_state(state(3 * S))  # no fold running: published
+        assert len(published) == 1
+
+        node.on_active(rc.fold_spec_to_msg(rc.PlannedFold(spec, 0.5, 30.0, 4.0, 0.2, 0, 4 * S)))
+        node.on_result(FoldResult(header=rc.header(9 * S), fold_name=spec.name, success=True, loss=0.005))
+        extra = state(10 * S)
+        extra.keypoint_names = list(extra.keypoint_names) + ["extra_marker"]
+        extra.keypoint_vertex_ids = list(extra.keypoint_vertex_ids) + [0]
+        node.on_state(extra)
+        assert "extra_marker" in errors[-1] and len(published) == 1
+        node.on_state(state(11 * S))  # a good state after all that: published
+        assert len(published) == 2 and rc.time_to_ns(published[-1].header.stamp) == 11 * S
+        with pytest.raises(ValueError, match="finite"):
+            rc.seconds_to_ns(1e300)
+        assert not math.isnan(rc.seconds_to_ns(4.0))
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)

@@ -27,7 +27,7 @@ from .qos import parse_qos
 
 # what the mcap library (and zstd/lz4 below it) raises on damaged input
 _DAMAGE = (McapError, CRCValidationError, EOFError, struct.error, ValueError, KeyError, IndexError, zlib.error,
-           UnicodeDecodeError, MemoryError)
+           UnicodeDecodeError, MemoryError, OSError, OverflowError)
 try:  # zstandard.ZstdError is not a ValueError
     import zstandard
 
@@ -36,6 +36,8 @@ except ImportError:  # pragma: no cover
     pass
 
 MAGIC = b"\x89MCAP0\r\n"
+FOOTER_OPCODE = 0x02
+FOOTER_LEN = 1 + 8 + 8 + 8 + 4  # the footer record: opcode, length, summary start, summary offset start, CRC
 RECOVER_HINT = "run `clothfold bag recover BAG -o FIXED.mcap` to salvage its complete chunks"
 
 
@@ -104,6 +106,7 @@ class _File:
             self.stream.close()
             raise BagError(f"{path}: truncated, it has no footer (the recorder was killed or is still running); "
                            f"{RECOVER_HINT}")
+        self._check_summary_crc()
         self.stream.seek(0)
         with _damage_as_bag_error(path, "reading the header"):
             self.reader = make_reader(self.stream, validate_crcs=True)
@@ -119,6 +122,30 @@ class _File:
         self.summary = summary
         with _damage_as_bag_error(path, "reading the metadata"):
             self.metadata = {m.name: dict(m.metadata) for m in self.reader.iter_metadata()}
+
+
+    def _check_summary_crc(self) -> None:
+        """Compare the footer's summary CRC (0: not written) with the summary section and the
+        footer fields before it: mcap's reader does not, and a damaged summary otherwise gives
+        wrong counts or message order without an error."""
+        footer = self.size - 8 - FOOTER_LEN  # opcode, record length, summary start, offset start, crc
+        self.stream.seek(footer)
+        raw = self.stream.read(FOOTER_LEN)
+        opcode, length, summary_start, _, crc = struct.unpack("<BQQQI", raw)
+        if opcode != FOOTER_OPCODE or length != FOOTER_LEN - 9:
+            self.stream.close()
+            raise BagError(f"{self.path}: damaged footer record; {RECOVER_HINT}")
+        if crc == 0 or summary_start == 0:
+            return  # no CRC written / no summary (reported below)
+        if not 8 <= summary_start <= footer:
+            self.stream.close()
+            raise BagError(f"{self.path}: damaged footer (summary start {summary_start} outside the file); "
+                           f"{RECOVER_HINT}")
+        self.stream.seek(summary_start)
+        covered = self.stream.read(footer + FOOTER_LEN - 4 - summary_start)  # through the footer's offset start
+        if zlib.crc32(covered) != crc:
+            self.stream.close()
+            raise BagError(f"{self.path}: the summary section is damaged (CRC mismatch); {RECOVER_HINT}")
 
 
 class BagReader:
@@ -146,9 +173,11 @@ class BagReader:
                                    f"expected {layout.SCHEMA_ENCODING}/{layout.MESSAGE_ENCODING}")
                 info = self.topics.get(ch.topic)
                 if info is None:
+                    with _damage_as_bag_error(f.path, f"reading the QoS of {ch.topic}"):
+                        qos = parse_qos(ch.metadata.get("offered_qos_profiles", ""))
                     info = self.topics[ch.topic] = TopicInfo(
                         ch.topic, schema.name, schema.data.decode("utf-8", "replace"),
-                        ch.metadata.get("topic_type_hash", ""), parse_qos(ch.metadata.get("offered_qos_profiles", "")))
+                        ch.metadata.get("topic_type_hash", ""), qos)
                 elif info.type != schema.name:
                     raise BagError(f"{self.path}: topic {ch.topic} has two types, {info.type} and {schema.name}")
                 info.message_count += stats.channel_message_counts.get(cid, 0)

@@ -21,6 +21,7 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker
 
 from ..folding import FoldSpec
+from . import limits
 from ..plan import FoldPlan
 from ..pose import Pose
 
@@ -41,10 +42,19 @@ def time_to_ns(t: Time) -> int:
     return int(t.sec) * NS_PER_S + int(t.nanosec)
 
 
+def stamp_ns(h: Header, what: str) -> int:
+    """A message header's stamp in ns; ValueError for a stamp before 0 (no clock gives one)."""
+    ns = time_to_ns(h.stamp)
+    if ns < 0:
+        raise ValueError(f"{what} stamp is negative ({h.stamp.sec} s, {h.stamp.nanosec} ns)")
+    return ns
+
+
 def seconds_to_ns(s: float) -> int:
-    if not math.isfinite(s):
-        raise ValueError(f"time must be finite, got {s}")
-    return int(round(s * NS_PER_S))
+    ns = s * NS_PER_S
+    if not math.isfinite(ns):
+        raise ValueError(f"time must be finite, got {s} s")
+    return int(round(ns))
 
 
 def header(stamp_ns: int, frame_id: str = TABLE_FRAME) -> Header:
@@ -170,6 +180,9 @@ def fold_spec_from_msg(m: FoldSpecMsg) -> PlannedFold:
     for k, v in scalars.items():
         if not math.isfinite(v):
             raise ValueError(f"fold spec {k} is not finite: {v}")
+    for k, (lo, hi) in (("duration", limits.DURATION_RANGE), ("settle_time", limits.SETTLE_RANGE)):
+        if not lo <= scalars[k] <= hi:
+            raise ValueError(f"fold spec {k} = {scalars[k]:g} s is outside [{lo:g}, {hi:g}] s")
     starts = tuple(pose_from_msg(p, f"start pose {i}") for i, p in enumerate(m.start_poses))
     ends = tuple(pose_from_msg(p, f"end pose {i}") for i, p in enumerate(m.end_poses))
     signs = _finite(list(m.tilt_signs), "tilt_signs")
@@ -177,7 +190,7 @@ def fold_spec_from_msg(m: FoldSpecMsg) -> PlannedFold:
                     point_from_msg(m.line_direction, "fold line direction"), starts, ends, tuple(signs.tolist()),
                     float(m.layer_offset_factor))
     return PlannedFold(spec, float(m.height_ratio), float(m.tilt_deg), float(m.duration), float(m.settle_time),
-                       int(m.stage), time_to_ns(m.header.stamp))
+                       int(m.stage), stamp_ns(m.header, "fold spec"))
 
 
 # -- cloth mesh ---------------------------------------------------------------------------------
@@ -240,7 +253,7 @@ def cloth_state_from_msg(m: ClothState) -> ClothStateData:
         raise ValueError(f"cloth state thickness must be finite and >= 0, got {m.thickness}")
     grasped = np.asarray(m.grasped_vertex_ids, dtype=np.int64)
     return ClothStateData(v, tri.reshape(-1, 3), dict(zip(names, ids.tolist())), float(m.thickness), grasped,
-                          time_to_ns(m.header.stamp))
+                          stamp_ns(m.header, "cloth state"))
 
 
 def mesh_marker(vertices: np.ndarray, triangles: np.ndarray, stamp_ns: int, frame_id: str = TABLE_FRAME,

@@ -36,6 +36,7 @@ from std_msgs.msg import ColorRGBA
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
+from ..garment import KEYPOINT_NAMES
 from . import conversions as rc
 from . import common, params
 from .params import Param
@@ -49,18 +50,27 @@ PARAMS = [
     params.SHAPE,
     Param("max_area", 1e-3, "mesh max triangle area (m^2) of the model shirt (source = model; cloth_state: the sim's)",
           range=(1e-5, 1e-2), read_only=True),
-    Param("model_period", 1.0, "republish period of the model keypoints (s)", range=(0.05, 60.0)),
+    Param("model_period", 1.0, "republish period of the model keypoints (s)", range=(0.05, 60.0), read_only=True),
     Param("points_topic", "/cloth/points", "sensor_msgs/PointCloud2 topic (source = points)", read_only=True),
     Param("points_frame", "table", "frame_id the clouds must have; table_from_camera maps it to the table frame",
           read_only=True),
     Param("table_from_camera", [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
           "fixed transform of cloud points into the table frame: x y z (m), qx qy qz qw", length=7, read_only=True),
-    Param("min_height", -0.01, "cloth points lie above this height over the table (m)", range=(-1.0, 1.0)),
+    Param("min_height", -0.01, "cloth points lie above this height over the table (m)", range=(-1.0, 1.0),
+          read_only=True),
     Param("max_height", 0.25, "and at most this high (m): higher points (grippers, arm) are ignored",
-          range=(0.0, 2.0)),
-    Param("pixel", 0.005, "top-view raster size (m)", range=(0.001, 0.05)),
-    Param("max_residual", 0.01, "a fit with a larger RMS outline residual (m) is rejected", range=(0.0005, 0.5)),
-]
+          range=(0.0, 2.0), read_only=True),
+    Param("pixel", 0.005, "top-view raster size (m)", range=(0.001, 0.05), read_only=True),
+    Param("max_residual", 0.01, "a fit with a larger RMS outline residual (m) is rejected", range=(0.0005, 0.5),
+          read_only=True),
+]  # the estimator's settings are read once, at start: read-only rather than changed without effect
+
+
+def _heights_ordered(values: dict, changed: list[str]) -> str | None:
+    """Cross check of the cloud's height band (m)."""
+    if not values["min_height"] < values["max_height"]:
+        return f"min_height ({values['min_height']:g} m) must be below max_height ({values['max_height']:g} m)"
+    return None
 
 
 def cloud_from_msg(m: PointCloud2) -> np.ndarray:
@@ -92,7 +102,7 @@ def cloud_from_msg(m: PointCloud2) -> np.ndarray:
 class KeypointNode(Node):
     def __init__(self) -> None:
         super().__init__("keypoint_node")
-        params.declare(self, PARAMS)
+        params.declare(self, PARAMS, _heights_ordered)
         self.pub = self.create_publisher(Keypoints, common.KEYPOINTS, common.LATCHED)
         self.count = 0
         self.errors = 0
@@ -206,7 +216,12 @@ class KeypointNode(Node):
     def on_points(self, msg: PointCloud2) -> None:
         from ..perception.estimator import PerceptionError, PoorFitError, estimate_keypoints
 
-        stamp = rc.time_to_ns(msg.header.stamp)
+        try:
+            stamp = rc.stamp_ns(msg.header, "cloud")
+        except ValueError as err:
+            self.errors += 1
+            self.get_logger().error(f"bad cloud skipped ({self.errors} so far): {err}; keeping the last good keypoints")
+            return
         if self.folding(stamp):
             self.skipped = (self.on_points, msg)  # a fold is moving the cloth: handled after its result
             return
@@ -293,6 +308,9 @@ class KeypointNode(Node):
             if not state.keypoint_ids:
                 raise ValueError("cloth state names no keypoint vertices")
             ids = dict(state.keypoint_ids)
+            unknown = sorted(set(ids) - set(KEYPOINT_NAMES))
+            if unknown:
+                raise ValueError(f"cloth state names keypoints the shirt model lacks: {', '.join(unknown)}")
             kp = state.keypoints()
             if self.folding(state.stamp_ns):
                 self.skipped = (self.on_state, msg)  # mid-fold: handled after the fold's result

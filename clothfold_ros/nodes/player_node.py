@@ -11,6 +11,7 @@ line error (exit code 1), topics whose type is not installed are skipped and rep
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from dataclasses import dataclass, field
@@ -53,10 +54,12 @@ class Player:
 
     def __init__(self, node: Node, bag: BagReader, topics: list[str] | None = None, rate: float = 1.0,
                  loop: bool = False, start_offset: float = 0.0, clock_hz: float | None = None) -> None:
-        if not rate > 0:
-            raise BagError(f"--rate must be > 0, got {rate}")
-        if start_offset < 0:
-            raise BagError(f"--start-offset must be >= 0 s, got {start_offset}")
+        if not 0 < rate < math.inf:
+            raise BagError(f"--rate must be > 0 and finite, got {rate}")
+        if not 0 <= start_offset < math.inf:
+            raise BagError(f"--start-offset must be >= 0 s and finite, got {start_offset}")
+        if clock_hz is not None and not 0 < clock_hz < math.inf:
+            raise BagError(f"--clock must be > 0 Hz and finite, got {clock_hz}")
         self.node, self.bag, self.rate, self.loop = node, bag, rate, loop
         self.start_ns = bag.start_ns + int(start_offset * 1e9)
         self.clock_hz = clock_hz

@@ -187,10 +187,11 @@ def top_view(cloth: np.ndarray, config: EstimatorConfig = EstimatorConfig()) -> 
     px = config.pixel
     margin = 4
     lo = cloth[:, :2].min(axis=0) - margin * px
+    span = (cloth[:, :2].max(axis=0) - lo) / px + margin + 1  # pixels, in float: no integer overflow
+    if not np.all(np.isfinite(span)) or span[0] * span[1] > 4000 * 4000:
+        raise BadCloudError(f"cloud spans {span[0] * px:.3g} x {span[1] * px:.3g} m: not a shirt on a table")
     ij = np.floor((cloth[:, :2] - lo) / px).astype(np.int64)
     w, h = ij.max(axis=0) + margin + 1
-    if w * h > 4000 * 4000:
-        raise BadCloudError(f"cloud spans {w * px:.1f} x {h * px:.1f} m: not a shirt on a table")
     mask = np.zeros((h, w), np.uint8)
     mask[ij[:, 1], ij[:, 0]] = 255
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
