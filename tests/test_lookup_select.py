@@ -11,7 +11,7 @@ import pytest
 
 from clothfold_ros.lookup.planner_selector import Selection, TableSelector
 from clothfold_ros.lookup.plot import plot_best_worst, plot_landscape, plot_overview
-from clothfold_ros.lookup.regret import evaluate, mean_regret, middle_of_fan, success_rate, summary, worst_regret
+from clothfold_ros.lookup.regret import evaluate, mean_regret, middle_of_fan, report, success_rate, summary, worst_regret
 from clothfold_ros.lookup.scenario import (SCENARIO_GROUPS, SCENARIOS, definition_features, features, flat_keypoints,
                                            generation_order, normalized_distance)
 from clothfold_ros.lookup.select import choose, smoothed_loss
@@ -90,6 +90,19 @@ def test_regret_arithmetic() -> None:
                                             "argmin")}
     assert rows["mu0.2"].flag == "failed in held-out"
     assert rows["mu0.2"].regret == pytest.approx(np.nanmax(l2f) - np.nanmin(l2f))
+    # a held-out table that never simulated the chosen point, or has no success at all: no regret, flagged
+    pts = np.setdiff1d(np.arange(len(FAN)), [50])
+    rows = {r.scenario: r for r in evaluate({"shape1": _table("shape1", l1, f1),
+                                             "mu0.2": _table("mu0.2", l2[pts], f2, points=pts)}, "argmin")}
+    assert rows["mu0.2"].flag == "not simulated in held-out" and math.isnan(rows["mu0.2"].regret)
+    rows = evaluate({"shape1": _table("shape1", l1, f1), "mu0.2": _table("mu0.2", np.full(len(FAN), np.nan), f2)},
+                    "argmin")
+    held = next(r for r in rows if r.scenario == "mu0.2")
+    assert held.flag == "no success in held-out" and math.isnan(held.regret)
+    lone = next(r for r in rows if r.scenario == "shape1")  # nothing left to choose from: a row, not a crash
+    assert lone.flag.startswith("n/a: no lookup table to choose from") and math.isnan(lone.regret)
+    text = report(rows, "argmin")
+    assert "| mu0.2 |" in text and "no success in held-out" in text and "over 0 of 2 scenarios" in text
 
 
 def test_static_and_default_rules_and_summary() -> None:

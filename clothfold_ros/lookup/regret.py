@@ -83,7 +83,11 @@ def evaluate(tables: Mapping[str, Table], rule: str = "robust") -> list[RegretRo
     for name, held in tables.items():
         ok = held.success & np.isfinite(held.loss)
         best = float(held.loss[ok].min()) if ok.any() else math.nan
-        picked = pick(tables, name)
+        try:
+            picked = pick(tables, name)
+        except ValueError as err:  # e.g. no other table with a successful run to choose from
+            rows.append(RegretRow(name, "-", -1, math.nan, math.nan, math.nan, best, math.nan, f"n/a: {err}"))
+            continue
         if picked is None:
             rows.append(RegretRow(name, "-", -1, math.nan, math.nan, math.nan, best, math.nan,
                                   "n/a: the rule's own table is held out"))
