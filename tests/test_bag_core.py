@@ -251,3 +251,17 @@ def test_playback_clock_rate():
     assert c.bag_time_ns(11.5) == T0 + 3_000_000_000
     with pytest.raises(ValueError):
         PlaybackClock(T0, 0.0, rate=0.0)
+
+
+def test_player_refuses_non_finite_settings():
+    """argparse takes 'nan' and 'inf' for floats: the player refuses them with the option's name."""
+    import math
+
+    from clothfold_ros.bag import BagError
+    from clothfold_ros.nodes.player_node import Player
+
+    for kwargs, words in (({"rate": math.nan}, "--rate"), ({"rate": math.inf}, "--rate"),
+                          ({"start_offset": math.nan}, "--start-offset"), ({"start_offset": -1.0}, "--start-offset"),
+                          ({"clock_hz": math.nan}, "--clock"), ({"clock_hz": 0.0}, "--clock")):
+        with pytest.raises(BagError, match=words):
+            Player(None, None, **kwargs)
