@@ -6,6 +6,12 @@
 # Shipped tables: scripts/generate_lookup_tables.sh every:4:6 5e-4 config/tables (see docs/lookup.md)
 # Full fan, full resolution:  scripts/generate_lookup_tables.sh all 5e-5 out/tables_full
 set -u
+# use this checkout's environment when clothfold is not on PATH (run ./clothfold once to create it)
+if ! command -v clothfold >/dev/null 2>&1; then
+  ROOT=$(cd "$(dirname "$0")/.." && pwd)
+  if [ -f "$ROOT/.venv/clothfold_env.sh" ]; then . "$ROOT/.venv/clothfold_env.sh"
+  else echo "clothfold not found: run $ROOT/clothfold --help once to set up .venv" >&2; exit 2; fi
+fi
 POINTS=${1:-every:4:6}
 MAX_AREA=${2:-5e-4}
 OUT=${3:-config/tables}
