@@ -100,6 +100,28 @@ def test_cli_writes_the_block_and_reports_bad_input(tmp_path, capsys):
     plain = tmp_path / "plain.md"
     plain.write_text("no markers\n")
     assert main(["tables", "--tables", str(tmp_path / "tables"), "--write", str(plain)]) == 2
-    assert "no <!-- table-status" in capsys.readouterr().err and plain.read_text() == "no markers\n"
+    assert "found 0" in capsys.readouterr().err and plain.read_text() == "no markers\n"
+    twice = tmp_path / "twice.md"
+    two_blocks = f"{status.BEGIN}\nA\n{status.END}\nmiddle\n{status.BEGIN}\nB\n{status.END}\n"
+    twice.write_text(two_blocks)
+    assert main(["tables", "--tables", str(tmp_path / "tables"), "--write", str(doc), str(twice)]) == 2
+    err = capsys.readouterr().err
+    assert "need exactly one" in err and "found 2" in err
+    assert twice.read_text() == two_blocks  # neither file is written when one is refused
+    unclosed = tmp_path / "unclosed.md"
+    unclosed.write_text(f"{status.BEGIN}\nA\n{status.END}\n{status.BEGIN}\n")
+    assert main(["tables", "--tables", str(tmp_path / "tables"), "--write", str(unclosed)]) == 2
+    assert "2 begin and 1 end markers" in capsys.readouterr().err
     assert main(["tables", "--tables", str(tmp_path / "missing")]) == 2
     assert "is not a directory" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("provenance", ["{not json", '{"fan_points": "all"}', '{"fan_points": [0, 134]}', "[1, 2]"])
+def test_status_refuses_a_broken_provenance_naming_the_file(tmp_path, capsys, provenance):
+    d = tmp_path / "tables" / "shape1"
+    _write_runs(d, [_row(0, 2.0)])
+    (d / sweep_dir.PROVENANCE).write_text(provenance)
+    with pytest.raises(ValueError, match="provenance"):
+        status.table_status(d)
+    assert main(["tables", "--tables", str(tmp_path / "tables")]) == 2
+    assert f"{d / sweep_dir.PROVENANCE}" in capsys.readouterr().err

@@ -66,9 +66,22 @@ def table_status(d: str | Path, name: str | None = None) -> TableStatus:
     rows = read_runs(d / RUNS) if (d / RUNS).exists() else []
     wanted = FAN_SIZE
     if (d / PROVENANCE).exists():
-        wanted = len(json.loads((d / PROVENANCE).read_text()).get("fan_points", [])) or FAN_SIZE
+        wanted = len(_fan_points(d / PROVENANCE)) or FAN_SIZE
     return TableStatus(name, len(rows), wanted, sum(not r["success"] for r in rows), best_row(rows),
                        [_run_cpu_s(r) for r in rows], lock_owner(d) is not None)
+
+
+def _fan_points(provenance: Path) -> list[int]:
+    """The `fan_points` a provenance file lists ([] when it lists none); ValueError naming
+    the file when it is not JSON or the list is not fan indices."""
+    try:
+        record = json.loads(provenance.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ValueError(f"{provenance}: unreadable provenance ({e})") from None
+    points = record.get("fan_points", []) if isinstance(record, dict) else None
+    if not isinstance(points, list) or not all(isinstance(p, int) and 0 <= p < FAN_SIZE for p in points):
+        raise ValueError(f"{provenance}: fan_points must be a list of fan indices 0..{FAN_SIZE - 1}")
+    return points
 
 
 def tables_status(root: str | Path) -> list[TableStatus]:
@@ -105,6 +118,8 @@ def markdown(statuses: list[TableStatus]) -> str:
 def replace_block(text: str, block: str) -> str:
     """`text` with the part between the BEGIN and END markers replaced by `block`."""
     pattern = re.compile(re.escape(BEGIN) + r".*?" + re.escape(END), re.S)
-    if not pattern.search(text):
-        raise ValueError(f"no {BEGIN} ... {END} block")
+    found = len(pattern.findall(text))
+    if found != 1 or text.count(BEGIN) != 1 or text.count(END) != 1:
+        raise ValueError(f"need exactly one {BEGIN} ... {END} block, found {found} "
+                         f"({text.count(BEGIN)} begin and {text.count(END)} end markers)")
     return pattern.sub(lambda _: f"{BEGIN}\n{block}\n{END}", text, count=1)
