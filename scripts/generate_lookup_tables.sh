@@ -17,9 +17,10 @@ MAX_AREA=${2:-5e-4}
 OUT=${3:-config/tables}
 # sequence stages need the stage before them; the rest are independent. The short motions
 # (T1, T2: 30 and 55 steps) come early: complete tables sooner for the leave-one-out regret.
-# thin_cotton's 12K runs cost 3-4x a shape1 run (3,228 Newton iterations for its fan point 1),
-# so the cheaper single-fold tables come before it.
-ORDER="shape1 T1 T2 both_sleeves shape2 shape3 thick_cotton mu0.2 mu0.8 thin_cotton T8 both_sides middle"
+# thin_cotton's 12K runs cost 3-4x a shape1 run (3,228 Newton iterations for its fan point 1;
+# median CPU s per run: T1 69, T2 84, mu0.2 112, thick_cotton 130, thin_cotton about 270),
+# so the cheaper single-fold tables, T8 included, come before it.
+ORDER="shape1 T1 T2 both_sleeves shape2 shape3 thick_cotton mu0.2 mu0.8 T8 thin_cotton both_sides middle"
 for s in $ORDER; do
   clothfold sweep "$s" --points "$POINTS" --max-area "$MAX_AREA" --out "$OUT" || echo "sweep $s FAILED (exit $?)" >&2
 done
