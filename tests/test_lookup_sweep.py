@@ -38,6 +38,13 @@ def test_resume_after_kill(tmp_path: Path) -> None:
     proc.wait()
     before = read_runs(runs)
     assert 2 <= len(before) < len(POINTS), "the kill must land mid-sweep"
+    # the killed sweep left the table of its finished runs (written after each; the kill may
+    # land between a run's row and its table), marked incomplete
+    partial = load_table(tmp_path / "T1")
+    assert set(partial.point.tolist()) <= {r["point"] for r in before} and len(partial.point) >= len(before) - 1
+    prov = json.loads((tmp_path / "T1" / "provenance.json").read_text())
+    assert not prov["complete"] and prov["simulated"] == len(partial.point)
+    assert not list((tmp_path / "T1").glob("*.tmp"))
     # a kill during an append leaves a partial line: simulate the worst case too
     with open(runs, "a") as f:
         f.write('{"point": 1')

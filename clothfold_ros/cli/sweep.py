@@ -71,9 +71,14 @@ def run(args: argparse.Namespace) -> int:
             return 2
         print(f"{sc.name}: table of the runs so far -> {table}")
         return 0
+    from ..lookup.table import write_table
+
+    def tabulate(_row: dict) -> None:  # after every run: a sweep ended mid-way leaves the table of its runs
+        write_table(d, command, points)
+
     try:
         rows = run_sweep(settings, d, points, workers=args.workers, ray_address=args.ray, previous_dir=prev,
-                         progress=not args.quiet)
+                         progress=not args.quiet, on_row=tabulate)
     except (ValueError, FileNotFoundError, RuntimeError) as err:
         print(f"clothfold sweep: {err}", file=sys.stderr)
         return 2

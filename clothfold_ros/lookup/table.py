@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import datetime as _dt
 import json
+import os
 import subprocess
 from collections import Counter
 from dataclasses import asdict, dataclass
@@ -76,7 +77,8 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
     sc = scenario(settings["scenario"])
     garment = make_shirt(sc.shape, max_area=settings["max_area"])
     rows = layout.read_runs(d)
-    with open(d / TABLE, "w", newline="") as f:
+    tmp = d / (TABLE + ".tmp")  # written aside and renamed: a reader never sees half a table
+    with open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COLUMNS)
         w.writeheader()
         for r in rows:
@@ -105,7 +107,10 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
         "cpu_seconds": round(sum(r.get("cpu_time_s", r["wall_time_s"]) for r in rows), 1),  # wall where not recorded
         "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
     }
-    (d / PROVENANCE).write_text(json.dumps(prov, indent=1))
+    prov_tmp = d / (PROVENANCE + ".tmp")
+    prov_tmp.write_text(json.dumps(prov, indent=1))
+    os.replace(tmp, d / TABLE)
+    os.replace(prov_tmp, d / PROVENANCE)
     return d / TABLE
 
 
