@@ -74,3 +74,28 @@ def test_regret_writes_its_report_and_names_partial_tables(tmp_path: Path, capsy
     (tmp_path / "T1" / "provenance.json").write_text(json.dumps({"complete": False}))
     code, out, err = _regret(capsys, "--tables", str(tmp_path))
     assert code == 2 and "at least two" in err
+
+
+def test_tie_margin_report_spans_argmin_to_fan_middle(tmp_path: Path, capsys) -> None:
+    """A tie margin of 0 picks the smoothed minimum (the other table's bowl centre, far from the
+    middle); one wider than the whole landscape picks the fan middle for every held-out table."""
+    from clothfold_ros.lookup.regret import evaluate, tie_margin_report
+    from clothfold_ros.lookup.select import middle_of_fan
+
+    tables = {"shape1": _table("shape1", _bowl(5)), "T1": _table("T1", _bowl(120) + 0.001)}
+    assert [r.point for r in evaluate(tables, "robust", tie_margin=10.0)] == [middle_of_fan()] * 2
+    assert {r.point for r in evaluate(tables, "robust", tie_margin=0.0)} != {middle_of_fan()}
+    default = evaluate(tables, "robust")
+    text = tie_margin_report(tables, [0.0, 5e-4, 10.0])
+    rows = [line for line in text.splitlines() if line.startswith("| ") and line[2].isdigit()]
+    assert [r.split(" | ")[0] for r in rows] == ["| 0", "| 0.5", "| 10000"]
+    assert f"| {sum(r.regret for r in default) / 2 * 1e3:.3f} |" in rows[1]  # 0.5 mm is the rule's default
+    with pytest.raises(ValueError, match="robust rule only"):
+        evaluate(tables, "static", tie_margin=0.0)
+
+    for name, t in tables.items():
+        _write_table_dir(tmp_path / name, t)
+    code, out, err = _regret(capsys, "--tables", str(tmp_path), "--tie-margins", "0,0.5")
+    assert code == 0 and "robust rule by tie margin" in out, err
+    code, out, err = _regret(capsys, "--tables", str(tmp_path), "--tie-margins", "-1")
+    assert code == 2 and "--tie-margins" in err

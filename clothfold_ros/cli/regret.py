@@ -14,11 +14,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="also write the Markdown report here")
     p.add_argument("--partial", action="store_true",
                    help="also hold out and choose from partial tables (default: complete tables only)")
+    p.add_argument("--tie-margins", default=None, metavar="MM,MM,...",
+                   help="also report the robust rule's regret for each of these tie margins (mm; default rule: 0.5)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..lookup.regret import RULES, evaluate, report, summary
+    from ..lookup.regret import RULES, evaluate, report, summary, tie_margin_report
     from ..lookup.table import load_tables
 
     try:
@@ -33,6 +35,8 @@ def run(args: argparse.Namespace) -> int:
                 ", ".join(f"{n} ({len(t.point)} points)" for n, t in sorted(load_tables(tables_arg(args)).items())
                           if n in partial)
         text = "\n\n".join([head, summary(rows)] + [report(r, RULES[name][1]) for name, r in rows.items()])
+        if args.tie_margins:
+            text += "\n\n" + tie_margin_report(tables, _margins_m(args.tie_margins))
     except (FileNotFoundError, ValueError, RuntimeError) as err:
         print(f"clothfold regret: {err}", file=sys.stderr)
         return 2
@@ -41,3 +45,14 @@ def run(args: argparse.Namespace) -> int:
         args.out.write_text(text + "\n")
     print(text)
     return 0
+
+
+def _margins_m(text: str) -> list[float]:
+    """'0,0.5,1' (mm) -> metres; a clear ValueError for anything else."""
+    try:
+        mm = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise ValueError(f"--tie-margins takes millimetres separated by commas, not {text!r}") from None
+    if not mm or any(not (m >= 0 and m < float("inf")) for m in mm):
+        raise ValueError(f"--tie-margins takes finite millimetres >= 0, not {text!r}")
+    return [m * 1e-3 for m in mm]

@@ -18,7 +18,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..trajectory import fan
-from .select import choose, failure_penalty, middle_of_fan
+from .select import DEFAULT_TIE_MARGIN, choose, failure_penalty, middle_of_fan
 from .table import Table
 
 DEFAULT_SCENARIO = "shape1"
@@ -43,9 +43,10 @@ class RegretRow:
 Rule = Callable[[Mapping[str, Table], str], "tuple[int, str] | None"]
 
 
-def _nearest_tables(tables: Mapping[str, Table], held: str, robust: bool) -> tuple[int, str]:
-    """select.choose without the held-out table (robust or raw argmin)."""
-    c = choose(tables, tables[held].features, exclude=(held,), robust=robust)
+def _nearest_tables(tables: Mapping[str, Table], held: str, robust: bool,
+                    tie_margin: float = DEFAULT_TIE_MARGIN) -> tuple[int, str]:
+    """select.choose without the held-out table (robust or raw argmin; tie_margin in m)."""
+    c = choose(tables, tables[held].features, exclude=(held,), robust=robust, tie_margin=tie_margin)
     return c.point, "+".join(c.scenarios)
 
 
@@ -71,13 +72,16 @@ RULES: dict[str, tuple[Rule, str]] = {
 }
 
 
-def evaluate(tables: Mapping[str, Table], rule: str = "robust") -> list[RegretRow]:
-    """Leave-one-scenario-out regret rows of `rule` (a key of RULES), one per table (needs >= 2 tables)."""
+def evaluate(tables: Mapping[str, Table], rule: str = "robust", tie_margin: float | None = None) -> list[RegretRow]:
+    """Leave-one-scenario-out regret rows of `rule` (a key of RULES), one per table (needs >= 2 tables).
+    tie_margin (m): the robust rule's, instead of select.DEFAULT_TIE_MARGIN (robust rule only)."""
     if len(tables) < 2:
         raise ValueError("leave-one-scenario-out needs at least two tables")
     if rule not in RULES:
         raise ValueError(f"unknown rule {rule!r} ({', '.join(RULES)})")
-    pick = RULES[rule][0]
+    if tie_margin is not None and rule != "robust":
+        raise ValueError(f"tie_margin applies to the robust rule only, not {rule!r}")
+    pick = RULES[rule][0] if tie_margin is None else partial(_nearest_tables, robust=True, tie_margin=tie_margin)
     f = fan()
     rows = []
     for name, held in tables.items():
@@ -152,4 +156,18 @@ def summary(rows_by_rule: Mapping[str, list[RegretRow]]) -> str:
         lines.append(f"| {RULES[name][1] if name in RULES else name} | {n} of {len(rows)} | "
                      f"{_mm(mean_regret(rows))} | {_mm(worst_regret(rows))} | "
                      f"{good} of {n_eval}" + (f" ({100 * good / n_eval:.0f} %)" if n_eval else "") + " |")
+    return "\n".join(lines)
+
+
+def tie_margin_report(tables: Mapping[str, Table], margins_m: list[float]) -> str:
+    """Markdown table: the robust rule's leave-one-out regret for each tie margin (m), with the
+    fan point it picks per held-out table (in the tables' order)."""
+    names = list(tables)
+    lines = [f"robust rule by tie margin (held out in order: {', '.join(names)})", "",
+             "| tie margin mm | mean regret mm | worst regret mm | success | fan points picked |", "|---|---|---|---|---|"]
+    for m in margins_m:
+        rows = evaluate(tables, "robust", tie_margin=m)
+        ok, n = success_rate(rows)
+        lines.append(f"| {m * 1e3:g} | {mean_regret(rows) * 1e3:.3f} | {worst_regret(rows) * 1e3:.2f} | {ok} of {n} | "
+                     f"{' '.join(str(r.point) for r in rows)} |")
     return "\n".join(lines)
