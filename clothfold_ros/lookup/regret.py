@@ -81,7 +81,7 @@ def evaluate(tables: Mapping[str, Table], rule: str = "robust", tie_margin: floa
         raise ValueError(f"unknown rule {rule!r} ({', '.join(RULES)})")
     if tie_margin is not None and rule != "robust":
         raise ValueError(f"tie_margin applies to the robust rule only, not {rule!r}")
-    pick = RULES[rule][0] if tie_margin is None else partial(_nearest_tables, robust=True, tie_margin=tie_margin)
+    pick = RULES[rule][0] if tie_margin is None else partial(RULES[rule][0], tie_margin=tie_margin)
     f = fan()
     rows = []
     for name, held in tables.items():
