@@ -10,7 +10,7 @@ import numpy as np
 
 from .scenario import STAGE_OF_FOLD, features
 from .select import choose
-from .sweep_dir import LEGACY_END_ANGLE_DEG
+from .sweep_dir import LEGACY_END_ANGLE_DEG, STUDY_END_ANGLE_DEG
 from .table import load_layered_tables, table_roots
 
 
@@ -46,6 +46,14 @@ class TableSelector:
         self.unusable = sorted(n for n, t in self.tables.items() if not t.success.any())
         if len(self.unusable) == len(self.tables):
             raise ValueError(f"TableSelector: no table in {self.table_dir} has a successful run")
+        #: partial tables (a sweep still under way), left out while a complete table exists: the
+        #: sweep simulates the fan ring by ring from the lowest height, so a partial table ranks
+        #: only the low corner of the fan and would confine the choice to it
+        self.partial = sorted(n for n, t in self.tables.items() if not t.provenance.get("complete", True))
+        complete = {n: t for n, t in self.tables.items() if n not in self.partial}
+        if not any(t.success.any() for t in complete.values()):
+            complete, self.partial = dict(self.tables), []
+        self.choosable = complete
 
     def select(self, *, fold_name: str, keypoints: Mapping[str, np.ndarray], material: str, friction: float,
                duration: float, stage: int) -> Selection:
@@ -55,21 +63,34 @@ class TableSelector:
         mapped to the table stage group (STAGE_OF_FOLD). Raises ValueError for unknown
         folds/materials or keypoints that define no fold.
         """
-        from ..folding import FOLD_SEQUENCE
+        from ..folding import FOLD_KINDS, FOLD_SEQUENCE, fold_type
 
         if not (isinstance(stage, (int, np.integer)) and 0 <= stage < len(FOLD_SEQUENCE)):
             raise ValueError(f"stage must be a FOLD_SEQUENCE index 0..{len(FOLD_SEQUENCE) - 1}, got {stage!r}")
         group = STAGE_OF_FOLD[FOLD_SEQUENCE[int(stage)]]
         feats = features(fold_name=fold_name, keypoints=keypoints, material_name=material, friction=friction,
                          duration=duration, stage=group)
-        c = choose(self.tables, feats)
+        c = choose(self.choosable, feats)
+        if c.static:
+            kinds = sorted({k.name for k in FOLD_KINDS.values() for t in self.choosable.values()
+                            if k.feature_code == t.fold_type})
+            note = (f"fan point {c.point}, the middle of the fan (the study's one static trajectory): no complete table "
+                    f"of a {fold_type(fold_name)} fold in {self.table_dir} (complete tables of: {', '.join(kinds)})")
+            return Selection(c.height_ratio, c.tilt_deg, "", math.nan, note + self._left_out(), STUDY_END_ANGLE_DEG)
         t = self.tables[c.scenarios[0]]
         raw = "failed there" if math.isnan(c.raw_loss) else f"{c.raw_loss * 1e3:.1f} mm"
         note = (f"fan point {c.point} from {', '.join(f'{n} (d={d:.2f})' for n, d in zip(c.scenarios, c.distances))}; "
                 f"smoothed loss {c.expected_loss * 1e3:.1f} mm, simulated {raw}; "
                 f"table {self.origin[t.name] / t.name}, max_area {t.provenance.get('resolution', {}).get('max_area_m2')} "
                 f"m^2, {len(t.point)} fan points{'' if t.provenance.get('complete', True) else ' (incomplete)'}")
-        if self.unusable:
-            note += f"; skipped (no successful run): {', '.join(self.unusable)}"
+        note += self._left_out()
         end_angle = float(t.provenance.get("settings", {}).get("end_angle_deg", LEGACY_END_ANGLE_DEG))
         return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note, end_angle)
+
+    def _left_out(self) -> str:
+        """The note's tail naming the tables not chosen from (no success; partial)."""
+        out = f"; skipped (no successful run): {', '.join(self.unusable)}" if self.unusable else ""
+        if self.partial:
+            out += "; left out (partial): " + ", ".join(f"{n} ({len(self.tables[n].point)} fan points)"
+                                                        for n in self.partial)
+        return out
