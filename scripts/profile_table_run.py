@@ -2,22 +2,28 @@
 point) with the sweep's own settings, and the share of subspace Newton directions.
 
     python scripts/profile_table_run.py SCENARIO POINT [--tables config/tables_12k]
-                                        [--seconds S] [--top 25] [--out run.prof]
+                                        [--seconds S | --steps K] [--top 25] [--out run.prof]
 
 Reads the scenario's settings.json (and start.npz of a sequence stage) from its sweep
 directory under --tables, runs the fan point as `clothfold sweep` would (one thread), and
 prints the functions by own time, the Newton directions solved on a subspace and the
-share of vertices those held. --seconds stops the run early (a profile of its first part).
-The row is printed when the run completes; nothing is written to the table.
+share of vertices those held. --seconds stops the run early (a profile of its first part);
+--steps K stops it after K simulator steps, a deterministic cut. Either way the CPU seconds
+and a digest (SHA-1) of the cloth's vertex positions after the last step are printed: two
+checkouts whose digests agree computed the same bits, so a change meant to be exact is
+checked by running the same command on both. The row is printed when the run completes;
+nothing is written to the table.
 """
 from __future__ import annotations
 
 import argparse
 import cProfile
+import hashlib
 import json
 import pstats
 import signal
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +34,8 @@ from clothfold_ros.sim.simulator import ClothSimulator
 from clothfold_ros.trajectory import fan
 
 
-class _Stop(Exception):
-    pass
+class _Stop(BaseException):
+    """Ends the run early (not an Exception: run_job records those as failed simulations)."""
 
 
 def main() -> int:
@@ -38,6 +44,7 @@ def main() -> int:
     ap.add_argument("point", type=int)
     ap.add_argument("--tables", default="config/tables_12k", help="tables root holding <scenario>/settings.json")
     ap.add_argument("--seconds", type=int, default=0, help="stop after this many wall seconds (0: the whole run)")
+    ap.add_argument("--steps", type=int, default=0, help="stop after this many simulator steps (0: the whole run)")
     ap.add_argument("--top", type=int, default=25)
     ap.add_argument("--out", help="also write the cProfile data here")
     args = ap.parse_args()
@@ -59,6 +66,18 @@ def main() -> int:
         return direction(self, data, grad, when, sub)
 
     ClothSimulator._direction = recording
+    state = {"steps": 0, "digest": "none"}  # simulator steps taken and the digest after the last
+    step = ClothSimulator.step
+
+    def counting(self, *a, **k):
+        out = step(self, *a, **k)
+        state["steps"] += 1
+        state["digest"] = hashlib.sha1(np.ascontiguousarray(self.x).tobytes()).hexdigest()
+        if args.steps and state["steps"] >= args.steps:
+            raise _Stop
+        return out
+
+    ClothSimulator.step = counting
 
     def stop(*_):
         raise _Stop
@@ -67,6 +86,7 @@ def main() -> int:
         signal.signal(signal.SIGALRM, stop)
         signal.alarm(args.seconds)
     prof = cProfile.Profile()
+    cpu = time.process_time()
     prof.enable()
     try:
         row, _ = run_job(job)
@@ -74,9 +94,11 @@ def main() -> int:
     except _Stop:
         done = False
     prof.disable()
+    cpu = time.process_time() - cpu
     signal.alarm(0)
-    ClothSimulator._direction = direction
-    print(json.dumps(row) if done else f"stopped after {args.seconds} s (a profile of the run's first part)")
+    ClothSimulator._direction, ClothSimulator.step = direction, step
+    print(json.dumps(row) if done else "stopped early (a profile of the run's first part)")
+    print(f"steps {state['steps']}, CPU {cpu:.1f} s (profiled), state digest {state['digest']}")
     sub = [s for s in shares if s is not None]
     print(f"Newton directions {len(shares)}, on a subspace {len(sub)}"
           + (f" (vertex share median {np.median(sub):.2f}, 10-90 % {np.quantile(sub, 0.1):.2f}-"

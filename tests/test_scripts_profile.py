@@ -29,6 +29,22 @@ def test_profile_table_run_profiles_a_sweep_point(tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr
     assert '"point": 96' in out.stdout and '"success": true' in out.stdout
     assert "Newton directions" in out.stdout and "function calls" in out.stdout
+    assert "state digest " in out.stdout and "state digest none" not in out.stdout
     assert not (tmp_path / "T1" / "runs.jsonl").exists() or not (tmp_path / "T1" / "runs.jsonl").read_text()
     bad = _script("profile_table_run.py", "T2", "96", "--tables", str(tmp_path))
     assert bad.returncode == 2 and "no sweep settings" in bad.stderr
+
+
+def test_profile_table_run_stops_after_k_steps_with_a_repeatable_digest(tmp_path: Path) -> None:
+    """--steps K cuts the run after K simulator steps (not recorded as a failure); the same
+    job gives the same digest, a different one (another fan point) another."""
+    run_sweep(SweepSettings("T1", max_area=1e-2), tmp_path / "T1", [], workers=1, progress=False)
+
+    def digest(point: str) -> str:
+        out = _script("profile_table_run.py", "T1", point, "--tables", str(tmp_path), "--steps", "3", "--top", "1")
+        assert out.returncode == 0, out.stderr
+        assert "stopped early" in out.stdout and '"success"' not in out.stdout and "steps 3, CPU" in out.stdout
+        return out.stdout.split("state digest ")[1].split()[0]
+
+    first = digest("96")
+    assert len(first) == 40 and digest("96") == first != digest("10")

@@ -145,6 +145,59 @@ def test_hessian_pattern_assembles_the_dense_sum_and_grows_for_contacts():
     assert np.allclose(scatter_gradient(n, blocks[0], g), ref)
 
 
+def _reference_slots(pat: HessianPattern, h: sp.csc_matrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Value slots (-2: block missing), values and block keys of the upper-block entries of h, in
+    storage order, by a sorted search over the pattern's block keys."""
+    coo = h.tocoo()
+    r, c = coo.row.astype(np.int64), coo.col.astype(np.int64)
+    keep = r // 3 <= c // 3
+    keys = (r // 3 * pat.nv + c // 3)[keep]
+    pos = np.searchsorted(pat.keys, keys)
+    present = pat.keys[np.minimum(pos, pat.nnz - 1)] == keys
+    return np.where(present, 9 * pos + (3 * (r % 3) + c % 3)[keep], -2), coo.data[keep], keys
+
+
+def test_contact_slots_match_a_sorted_search_and_bump_missing_blocks():
+    """contact_slots (one pass over a CSC Hessian's stored entries) gives, in storage order, the
+    slots a sorted search over the block keys gives; missing blocks are deferred with their
+    Frobenius norms on both vertices' diagonals (grow=False) or added (grow=True)."""
+    v, f = rectangle(0.05, 0.05, 5e-4, 0.0)
+    n = 3 * len(v)
+    rng = np.random.default_rng(7)
+    dofs = element_dofs(rng.integers(0, len(v), size=(40, 4)))
+    local = rng.normal(size=(40, 12, 12))
+    rows, cols = np.repeat(dofs, 12, axis=1).ravel(), np.tile(dofs, (1, 12)).ravel()
+    hc = sp.coo_matrix(((local + local.transpose(0, 2, 1)).ravel(), (rows, cols)), shape=(n, n)).tocsc()
+
+    pat = HessianPattern(n, [element_dofs(f)])
+    pat.begin_solve()
+    ref, vals, keys = _reference_slots(pat, hc)
+    miss = ref == -2
+    assert miss.any() and (~miss).any()
+    slots, got, grew = pat.contact_slots(hc, grow=False)
+    uniq = np.unique(keys[miss])
+    norm = np.array([np.sqrt(np.sum(vals[miss][keys[miss] == k] ** 2)) for k in uniq])
+    bump = np.zeros(pat.nv)
+    np.add.at(bump, uniq // pat.nv, norm)
+    np.add.at(bump, uniq % pat.nv, norm)
+    assert not grew and np.array_equal(pat.pending, uniq)
+    assert np.array_equal(slots, np.concatenate([ref[~miss], pat.diag_slots]))
+    assert np.array_equal(got[:np.count_nonzero(~miss)], vals[~miss])
+    assert np.allclose(got[np.count_nonzero(~miss):], np.repeat(bump, 3))
+    assert pat.begin_solve()  # the deferred blocks are added
+    slots, got, grew = pat.contact_slots(hc)
+    ref, vals, _ = _reference_slots(pat, hc)
+    assert not grew and (ref >= 0).all() and np.array_equal(slots, ref) and np.array_equal(got, vals)
+
+    fresh = HessianPattern(n, [element_dofs(f)])
+    fresh.begin_solve()
+    slots, got, grew = fresh.contact_slots(hc)  # grow=True: added at once
+    ref, vals, _ = _reference_slots(fresh, hc)
+    assert grew and (ref >= 0).all() and np.array_equal(slots, ref) and np.array_equal(got, vals)
+    assert (fresh.last_used[slots // 9] == fresh.solves).all()
+    assert np.array_equal(fresh.keys, pat.keys)
+
+
 def test_hessian_pattern_prunes_contact_entries_unused_for_keep_solves():
     v, f = rectangle(0.05, 0.05, 5e-4, 0.0)
     n = 3 * len(v)
@@ -294,6 +347,14 @@ def test_lagged_friction_kernels_equal_ipctk_friction_potential():
     c.lag_friction(sim.x)
     kinds = {n: len(getattr(c.tangential, n)) for n in ("ee_collisions", "fv_collisions")}
     assert min(kinds.values()) > 10 and len(c.friction) == len(c.tangential) > sum(kinds.values())  # + table
+    contacts = [cc for n in ("vv_collisions", "ev_collisions", "ee_collisions", "fv_collisions")
+                for cc in getattr(c.tangential, n)]
+    for cc, ids, P in zip(contacts, c.friction.ids, c.friction.P):  # read in bulk: ipctk's per-contact values
+        v = np.asarray(cc.vertex_ids(c.mesh.edges, c.mesh.faces))
+        assert np.array_equal(ids, np.where(v >= 0, v, -1))
+        k = 3 * int(np.count_nonzero(v >= 0))
+        assert np.array_equal(P[:, :k], np.asarray(cc.tangent_basis).T @ cc.relative_velocity_jacobian())
+        assert not P[:, k:].any()
     reference = ipctk.FrictionPotential(c.friction.eps)
     rng = np.random.default_rng(5)
     pat = HessianPattern(sim.x.size, [element_dofs(f)])

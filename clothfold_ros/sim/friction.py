@@ -57,6 +57,39 @@ def table_normal_forces(z: np.ndarray, stiffness: float, xi: float, dhat: float)
     return near, -2.0 * zn * stiffness * clamped_log_barrier_derivative(zn * zn - xi * xi, 2.0 * xi * dhat + dhat * dhat)
 
 
+def _stencil_ids(name: str, group, edges: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Stencil vertex ids (n, 4) of one kind of ipctk tangential collision, in ipctk's
+    vertex_ids order, padded with -1."""
+    ids = np.full((len(group), STENCIL), -1, dtype=np.int64)
+    if name == "vv_collisions":
+        ids[:, 0] = [cc.vertex0_id for cc in group]
+        ids[:, 1] = [cc.vertex1_id for cc in group]
+    elif name == "ev_collisions":
+        ids[:, 0] = [cc.vertex_id for cc in group]
+        ids[:, 1:3] = edges[[cc.edge_id for cc in group]]
+    elif name == "ee_collisions":
+        ids[:, 0:2] = edges[[cc.edge0_id for cc in group]]
+        ids[:, 2:4] = edges[[cc.edge1_id for cc in group]]
+    else:  # fv_collisions
+        ids[:, 0] = [cc.vertex_id for cc in group]
+        ids[:, 1:4] = faces[[cc.face_id for cc in group]]
+    return ids
+
+
+def _read_group(name: str, group, edges: np.ndarray, faces: np.ndarray):
+    """ids (n, 4), P = T^T G (n, 2, 12) zero-padded and w lambda (n,) of one kind of contact."""
+    n = len(group)
+    P = np.zeros((n, 2, 3 * STENCIL))
+    if n == 0:
+        return np.zeros((0, STENCIL), dtype=np.int64), P, np.zeros(0)
+    ids = _stencil_ids(name, group, edges, faces)
+    T = np.array([cc.tangent_basis for cc in group])  # (n, 3, 2)
+    G = np.array([cc.relative_velocity_jacobian() for cc in group])  # (n, 3, 3k)
+    P[:, :, :G.shape[2]] = np.matmul(T.transpose(0, 2, 1), G)
+    c = np.array([cc.weight for cc in group]) * np.array([cc.normal_force_magnitude for cc in group])
+    return ids, P, c
+
+
 class LaggedFriction:
     """The friction contacts of one step as arrays: stencil vertex ids (n, 4), P (n, 2, 12)
     and c = w mu lambda (n,)."""
@@ -76,23 +109,17 @@ class LaggedFriction:
     def lag(self, tangential, mesh, mu: float, table_vertices: np.ndarray, table_forces: np.ndarray) -> None:
         """Read ipctk's cloth-cloth tangential collisions (built at the lag positions with the
         Coulomb coefficient mu) and add the table contacts of `table_vertices` with normal
-        forces `table_forces`. About 15 us per contact (ipctk's Python accessors), once a step."""
-        edges, faces = mesh.edges, mesh.faces
-        contacts = [cc for name in _CLOTH_CONTACTS for cc in getattr(tangential, name)]
-        n_cloth, n_table = len(contacts), len(table_vertices)
-        ids = np.full((n_cloth + n_table, STENCIL), -1, dtype=np.int64)
-        P = np.zeros((n_cloth + n_table, 2, 3 * STENCIL))
-        c = np.empty(n_cloth + n_table)
-        for i, cc in enumerate(contacts):
-            v = np.asarray(cc.vertex_ids(edges, faces))
-            k = int(np.count_nonzero(v >= 0))
-            ids[i, :k] = v[:k]
-            P[i, :, :3 * k] = np.asarray(cc.tangent_basis).T @ cc.relative_velocity_jacobian()
-            c[i] = cc.weight * cc.normal_force_magnitude  # times mu below (ipctk's mu_s = mu_k = mu)
-        ids[n_cloth:, 0] = table_vertices
-        P[n_cloth:, 0, 0] = P[n_cloth:, 1, 1] = 1.0  # tangent basis of the table: x and y
-        c[n_cloth:] = np.asarray(table_forces, dtype=float)
-        self.ids, self.P, self.c = ids, P, mu * c
+        forces `table_forces`. About 6 us per contact (ipctk's Python accessors), once a step."""
+        groups = [_read_group(name, getattr(tangential, name), mesh.edges, mesh.faces) for name in _CLOTH_CONTACTS]
+        n_table = len(table_vertices)
+        table_ids = np.full((n_table, STENCIL), -1, dtype=np.int64)
+        table_ids[:, 0] = table_vertices
+        table_P = np.zeros((n_table, 2, 3 * STENCIL))
+        table_P[:, 0, 0] = table_P[:, 1, 1] = 1.0  # tangent basis of the table: x and y
+        ids = np.concatenate([g[0] for g in groups] + [table_ids])
+        P = np.concatenate([g[1] for g in groups] + [table_P])
+        c = np.concatenate([g[2] for g in groups] + [np.asarray(table_forces, dtype=float)])
+        self.ids, self.P, self.c = ids, P, mu * c  # ipctk's mu_s = mu_k = mu
         self._tau = np.zeros((len(c), 2))
         self.damped = np.zeros(len(c), dtype=np.bool_)
         self.generation += 1

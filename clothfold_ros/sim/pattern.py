@@ -81,6 +81,39 @@ def _scale_blocks(data, indptr, indices, scale):
     return out
 
 
+@nb.njit(cache=True)
+def _stored_entry_slots(indptr, indices, block_indptr, block_indices):
+    """Value slot of every stored entry of a CSC matrix over the block pattern (block_indptr,
+    block_indices), in storage order: 9 s + 3 i + j for an entry in stored block s, -1 for an
+    entry of a lower block (its mirror is stored), -2 for a block the pattern lacks."""
+    out = np.empty(indices.shape[0], dtype=np.int64)
+    for col in range(indptr.shape[0] - 1):
+        b = col // BLOCK
+        last_a, slot = -1, -2  # rows of one block come in a run: one search per block
+        for p in range(indptr[col], indptr[col + 1]):
+            row = indices[p]
+            a = row // BLOCK
+            if a > b:
+                out[p] = -1
+                continue
+            if a != last_a:
+                lo, end = block_indptr[a], block_indptr[a + 1]
+                hi = end
+                while lo < hi:  # first block of row a with column >= b
+                    mid = (lo + hi) >> 1
+                    if block_indices[mid] < b:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                slot = lo if lo < end and block_indices[lo] == b else -2
+                last_a = a
+            if slot >= 0:
+                out[p] = BLOCK * BLOCK * slot + BLOCK * (row % BLOCK) + col % BLOCK
+            else:
+                out[p] = -2
+    return out
+
+
 class HessianPattern:
     """Upper block pattern over `ndof` DOFs (3 per vertex) for element blocks, the diagonal
     and contacts. `nnz` counts stored 3x3 blocks; value arrays have 9 nnz entries."""
@@ -201,26 +234,29 @@ class HessianPattern:
         +-sigma(B) <= ||B||_F), so it stays SPD and Newton keeps a descent direction; the
         missing blocks wait in `pending` until `grow_pending`.
         """
-        coo = hessian.tocoo()
-        keys, offset, keep = _entry_keys(coo.row.astype(np.int64), coo.col.astype(np.int64), self.nv)
-        keys, offset, vals = keys[keep], offset[keep], coo.data[keep]
-        slots, missing = self._find(keys)
+        csc = hessian if hessian.format == "csc" else hessian.tocsc()  # ipctk's Hessians are CSC
+        keep = (found := _stored_entry_slots(csc.indptr, csc.indices, self.indptr, self.indices)) != -1
+        value_slots, vals = found[keep], csc.data[keep]  # stored entries in storage order
+        missing = value_slots == -2
         if not missing.any():
-            self.last_used[slots] = self.solves
-            return BLOCK * BLOCK * slots + offset, vals, False
+            self.last_used[value_slots // (BLOCK * BLOCK)] = self.solves
+            return value_slots, vals, False
+        at = np.flatnonzero(keep)[missing]  # the missing entries' places in csc.data
+        rows, cols = csc.indices[at].astype(np.int64), np.searchsorted(csc.indptr, at, side="right") - 1
+        miss_keys = rows // BLOCK * self.nv + cols // BLOCK
         if grow:
-            slots = self._grow_to(keys, missing)
-            return BLOCK * BLOCK * slots + offset, vals, True
-        self.last_used[slots[~missing]] = self.solves
-        miss_keys, miss_vals = keys[missing], vals[missing]
+            self._insert(self._with_neighbours(np.unique(miss_keys)))
+            value_slots = _stored_entry_slots(csc.indptr, csc.indices, self.indptr, self.indices)[keep]
+            self.last_used[value_slots // (BLOCK * BLOCK)] = self.solves
+            return value_slots, vals, True
+        self.last_used[value_slots[~missing] // (BLOCK * BLOCK)] = self.solves
         uniq, inv = np.unique(miss_keys, return_inverse=True)
         self.pending = np.union1d(self.pending, uniq)
-        norm = np.sqrt(np.bincount(inv, weights=miss_vals**2))
+        norm = np.sqrt(np.bincount(inv, weights=vals[missing] ** 2))
         bump = np.bincount(np.concatenate([uniq // self.nv, uniq % self.nv]), weights=np.concatenate([norm, norm]),
                            minlength=self.nv)
-        found = ~missing
-        return (np.concatenate([BLOCK * BLOCK * slots[found] + offset[found], self.diag_slots]),
-                np.concatenate([vals[found], np.repeat(bump, BLOCK)]), False)
+        return (np.concatenate([value_slots[~missing], self.diag_slots]),
+                np.concatenate([vals[~missing], np.repeat(bump, BLOCK)]), False)
 
     def stencil_block_slots(self, ids: np.ndarray) -> np.ndarray:
         """Block slots (n, 4, 4) of the vertex pairs of contact stencils `ids` (n, 4) (-1:
