@@ -343,29 +343,13 @@ def test_best_worst_marks_folded_over_cloth_by_its_facing() -> None:
     assert flips[all_left].all() and not flips[all_right].any()
 
 
-def test_a_fold_without_a_table_of_its_type_gets_the_middle_of_the_fan() -> None:
-    """Rule step 0: a sleeve table does not rank side-fold trajectories; with no side table
-    the choice is the fan's middle, whatever the sleeve tables' minima."""
-    sleeve = _table("shape1", _bowl(99))
-    side_feats = {**sleeve.features, "stage": 2.0, "fold_type": 1.0}
-    c = choose({"shape1": sleeve}, side_feats)
-    assert c.static and c.point == middle_of_fan() and c.scenarios == () and math.isnan(c.expected_loss)
-    assert (c.height_ratio, c.tilt_deg) == (FAN[middle_of_fan(), 0], FAN[middle_of_fan(), 1])
-    side = _table("both_sides", _bowl(120), side_feats)
-    c = choose({"shape1": sleeve, "both_sides": side}, side_feats)  # a side table: it alone is used
-    assert not c.static and c.scenarios == ("both_sides",) and c.point == 120
-    assert choose({"shape1": sleeve, "both_sides": side}, sleeve.features).scenarios == ("shape1",)
-    rows = {r.scenario: r for r in evaluate({"shape1": sleeve, "both_sides": side})}  # leave-one-out
-    assert rows["both_sides"].point == middle_of_fan() and "no table of its fold type" in rows["both_sides"].chosen_from
-
-
 def test_table_selector_leaves_partial_tables_out_and_names_them(tmp_path: Path) -> None:
     """A partial table (sweep under way) ranks only the fan's low corner: the planner leaves it
-    out while complete tables exist, says so in every note, and a fold whose only table of its
-    type is partial gets the middle of the fan."""
+    out while complete tables exist and says so in every note; a side fold then takes the
+    nearest complete table, of another fold type, and the note says that too."""
     kp = flat_keypoints(1, "cotton")
     _write_table_dir(tmp_path / "shape1", _table("shape1", _bowl(66)))
-    low = np.arange(16)  # the first ring(s) of the fan, as a sweep leaves them
+    low = np.arange(16)  # the first rings of the fan, as a sweep leaves them
     side = _table("both_sides", np.full(16, 0.001), {**definition_features(SCENARIOS["shape1"]), "stage": 2.0,
                                                      "fold_type": 1.0}, points=low)
     _write_table_dir(tmp_path / "both_sides", side)
@@ -373,13 +357,18 @@ def test_table_selector_leaves_partial_tables_out_and_names_them(tmp_path: Path)
     prov.write_text(json.dumps({"resolution": {"max_area_m2": 5e-5}, "complete": False}))
     sel = TableSelector(tmp_path)
     assert sel.partial == ["both_sides"] and set(sel.choosable) == {"shape1"}
-    s = sel.select(fold_name="left_side", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=2)
-    assert s.scenario == "" and (s.height_ratio, s.tilt_deg) == (FAN[middle_of_fan(), 0], FAN[middle_of_fan(), 1])
-    assert "middle of the fan" in s.note and "no complete table of a side fold" in s.note
-    assert "left out (partial): both_sides (16 fan points)" in s.note and math.isnan(s.expected_loss)
-    s = sel.select(fold_name="left_sleeve", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=0)
-    assert s.scenario == "shape1" and "left out (partial): both_sides" in s.note
+    args = dict(keypoints=kp, material="cotton", friction=0.5, duration=4.0)
+    s = sel.select(fold_name="left_side", stage=2, **args)
+    assert s.scenario == "shape1" and (s.height_ratio, s.tilt_deg) == (FAN[66, 0], FAN[66, 1])
+    assert "a sleeve table for a side fold: no complete side table yet" in s.note
+    assert "left out (partial): both_sides (16 fan points)" in s.note
+    s = sel.select(fold_name="left_sleeve", stage=0, **args)
+    assert s.scenario == "shape1" and "left out (partial): both_sides" in s.note and "fold:" not in s.note
     prov.write_text(json.dumps({"resolution": {"max_area_m2": 5e-5}, "complete": True}))  # finished: it counts
-    s = TableSelector(tmp_path).select(fold_name="left_side", keypoints=kp, material="cotton", friction=0.5,
-                                       duration=4.0, stage=2)
+    s = TableSelector(tmp_path).select(fold_name="left_side", stage=2, **args)
     assert s.scenario == "both_sides" and s.height_ratio in FAN[low, 0] and "partial" not in s.note
+    assert "fold:" not in s.note
+    prov.write_text(json.dumps({"resolution": {"max_area_m2": 5e-5}, "complete": False}))
+    (tmp_path / "shape1" / "table.csv").unlink()  # only partial tables: they are used
+    s = TableSelector(tmp_path).select(fold_name="left_side", stage=2, **args)
+    assert s.scenario == "both_sides" and "(incomplete)" in s.note

@@ -10,7 +10,7 @@ import numpy as np
 
 from .scenario import STAGE_OF_FOLD, features
 from .select import choose
-from .sweep_dir import LEGACY_END_ANGLE_DEG, STUDY_END_ANGLE_DEG
+from .sweep_dir import LEGACY_END_ANGLE_DEG
 from .table import load_layered_tables, table_roots
 
 
@@ -71,18 +71,16 @@ class TableSelector:
         feats = features(fold_name=fold_name, keypoints=keypoints, material_name=material, friction=friction,
                          duration=duration, stage=group)
         c = choose(self.choosable, feats)
-        if c.static:
-            kinds = sorted({k.name for k in FOLD_KINDS.values() for t in self.choosable.values()
-                            if k.feature_code == t.fold_type})
-            note = (f"fan point {c.point}, the middle of the fan (the study's one static trajectory): no complete table "
-                    f"of a {fold_type(fold_name)} fold in {self.table_dir} (complete tables of: {', '.join(kinds)})")
-            return Selection(c.height_ratio, c.tilt_deg, "", math.nan, note + self._left_out(), STUDY_END_ANGLE_DEG)
         t = self.tables[c.scenarios[0]]
         raw = "failed there" if math.isnan(c.raw_loss) else f"{c.raw_loss * 1e3:.1f} mm"
         note = (f"fan point {c.point} from {', '.join(f'{n} (d={d:.2f})' for n, d in zip(c.scenarios, c.distances))}; "
                 f"smoothed loss {c.expected_loss * 1e3:.1f} mm, simulated {raw}; "
                 f"table {self.origin[t.name] / t.name}, max_area {t.provenance.get('resolution', {}).get('max_area_m2')} "
                 f"m^2, {len(t.point)} fan points{'' if t.provenance.get('complete', True) else ' (incomplete)'}")
+        if t.fold_type != feats["fold_type"]:  # nearest neighbour across fold types: say so
+            kinds = {k.feature_code: k.name for k in FOLD_KINDS.values()}
+            note += (f"; a {kinds.get(t.fold_type, t.fold_type)} table for a {fold_type(fold_name)} fold: "
+                     f"no complete {fold_type(fold_name)} table yet")
         note += self._left_out()
         end_angle = float(t.provenance.get("settings", {}).get("end_angle_deg", LEGACY_END_ANGLE_DEG))
         return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note, end_angle)

@@ -47,7 +47,7 @@ def _nearest_tables(tables: Mapping[str, Table], held: str, robust: bool,
                     tie_margin: float = DEFAULT_TIE_MARGIN) -> tuple[int, str]:
     """select.choose without the held-out table (robust or raw argmin; tie_margin in m)."""
     c = choose(tables, tables[held].features, exclude=(held,), robust=robust, tie_margin=tie_margin)
-    return c.point, "+".join(c.scenarios) if not c.static else "(fan middle: no table of its fold type)"
+    return c.point, "+".join(c.scenarios)
 
 
 def _static(tables: Mapping[str, Table], held: str) -> tuple[int, str]:

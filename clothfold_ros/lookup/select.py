@@ -1,10 +1,6 @@
 """Robust choice of (height ratio, tilt) from the nearest scenario table(s) (docs/method.md section 9).
 
 Rule (docs/lookup.md):
-0. Fold type: only tables of the fold's own type (sleeve, side, middle) are used: a table
-   of another fold ranks that fold's trajectories, not this one's. With none (e.g. the
-   middle fold before its table exists), the choice is the middle of the fan, the study's
-   one static trajectory (its leave-one-out regret ties the robust rule's at 12K).
 1. Distance: normalized Euclidean distance between the scenario features
    (scenario.FEATURE_SCALES); the nearest table and every table within `blend_margin`
    units of it are used, weighted 1 / (1 + distance).
@@ -92,26 +88,8 @@ class Choice:
     tilt_deg: float
     scenarios: tuple[str, ...]
     distances: tuple[float, ...]
-    expected_loss: float  # blended smoothed loss at the point (NaN: no table of the fold's type)
-    raw_loss: float  # simulated loss at the point in the nearest table (NaN if it failed there or no table)
-
-    @property
-    def static(self) -> bool:
-        """True when no table of the fold's type exists and the fan's middle was taken (rule step 0)."""
-        return not self.scenarios
-
-
-def static_choice() -> Choice:
-    """The middle of the fan, for a fold no table covers (rule step 0)."""
-    p = middle_of_fan()
-    f = fan()
-    return Choice(p, float(f[p, 0]), float(f[p, 1]), (), (), math.nan, math.nan)
-
-
-def same_fold_type(tables: Mapping[str, Table], feats: Mapping[str, float]) -> dict[str, Table]:
-    """The tables simulated with the fold type of `feats` (rule step 0)."""
-    kind = feats.get("fold_type")
-    return {n: t for n, t in tables.items() if t.features.get("fold_type") == kind}
+    expected_loss: float  # blended smoothed loss at the point
+    raw_loss: float  # simulated loss at the point in the nearest table (NaN if it failed there)
 
 
 def nearest(tables: Mapping[str, Table], feats: Mapping[str, float], exclude: tuple[str, ...] = (),
@@ -129,14 +107,7 @@ def choose(tables: Mapping[str, Table], feats: Mapping[str, float], exclude: tup
            blend_margin: float = DEFAULT_BLEND_MARGIN, robust: bool = True,
            tie_margin: float = DEFAULT_TIE_MARGIN) -> Choice:
     """The robust choice for scenario features `feats` (robust=False: the raw argmin of
-    the nearest table, for comparison; tie_margin applies to the robust rule only). Without a
-    table of the fold's type (other than excluded or failed ones): the middle of the fan."""
-    own = same_fold_type(tables, feats)
-    if not any(n not in exclude and t.success.any() for n, t in own.items()):
-        if any(n not in exclude and t.success.any() for n, t in tables.items()):
-            return static_choice()
-    else:
-        tables = own
+    the nearest table, for comparison; tie_margin applies to the robust rule only)."""
     used = nearest(tables, feats, exclude, blend_margin if robust else 0.0)
     if not robust:
         used = used[:1]

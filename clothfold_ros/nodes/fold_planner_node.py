@@ -140,9 +140,8 @@ class FoldPlannerNode(Node):
             s = self.selector().select(fold_name=name, keypoints=keypoints, material=params.value(self, "material"),
                                        friction=params.value(self, "friction"),
                                        duration=params.value(self, "duration"), stage=FOLD_SEQUENCE.index(name))
-            source = f"table {s.scenario}: expected loss {s.expected_loss:.4f} m" if s.scenario else "no table"
             return float(s.height_ratio), float(s.tilt_deg), s.end_angle_deg, \
-                f"{source}; {s.note}; end angle {s.end_angle_deg:g} deg"
+                f"table {s.scenario}: expected loss {s.expected_loss:.4f} m; {s.note}; end angle {s.end_angle_deg:g} deg"
         except Exception as err:  # noqa: BLE001
             if not params.value(self, "fallback_to_parameters"):
                 raise RuntimeError(f"table selection failed: {err}") from err
