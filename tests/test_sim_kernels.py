@@ -197,6 +197,21 @@ def test_contact_slots_match_a_sorted_search_and_bump_missing_blocks():
     assert (fresh.last_used[slots // 9] == fresh.solves).all()
     assert np.array_equal(fresh.keys, pat.keys)
 
+    # entries as a CSC matrix may hold them: rows unsorted within a column, duplicates, int64 indices
+    order = np.concatenate([rng.permutation(np.arange(a, b)) for a, b in zip(hc.indptr[:-1], hc.indptr[1:])])
+    dup = np.repeat(np.arange(hc.shape[1]), np.diff(hc.indptr))  # column of each entry
+    twice = np.concatenate([order, order[:50]])  # 50 entries stored twice, appended to their columns below
+    cols = np.concatenate([dup[order], dup[order[:50]]])
+    keep_order = np.argsort(cols, kind="stable")
+    raw = sp.csc_matrix((hc.data[twice][keep_order], hc.indices[twice][keep_order].astype(np.int64),
+                         np.searchsorted(cols[keep_order], np.arange(n + 1)).astype(np.int64)), shape=(n, n))
+    assert not raw.has_canonical_format
+    slots, got, grew = fresh.contact_slots(raw)
+    ref, vals, _ = _reference_slots(fresh, raw)
+    assert not grew and np.array_equal(slots, ref) and np.array_equal(got, vals)
+    empty = fresh.contact_slots(sp.csc_matrix((n, n)))
+    assert len(empty[0]) == len(empty[1]) == 0 and not empty[2]
+
 
 def test_hessian_pattern_prunes_contact_entries_unused_for_keep_solves():
     v, f = rectangle(0.05, 0.05, 5e-4, 0.0)
@@ -369,6 +384,55 @@ def test_lagged_friction_kernels_equal_ipctk_friction_potential():
         data = np.zeros(9 * pat.nnz)
         scatter_stencil_hessians(data, slots, c.friction.hessians(u))
         assert np.abs(_full(pat, data) - h_ref).max() <= 1e-12 * np.abs(h_ref).max()
+
+
+def _two_grids(offset: tuple[float, float]):
+    """Two parallel 6 x 6 vertex grids 1 cm apart (the upper one shifted by `offset`, m) and
+    ipctk's tangential collisions between them (dhat 2 cm, mu 0.3)."""
+    import ipctk
+
+    xs = np.linspace(0.0, 1.0, 6)
+    X, Y = np.meshgrid(xs, xs)
+    idx = np.arange(36).reshape(6, 6)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    f = np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)])
+    lower = np.column_stack([X.ravel(), Y.ravel(), np.zeros(36)])
+    upper = lower + [offset[0], offset[1], 0.01]
+    v, faces = np.vstack([lower, upper]), np.vstack([f, f + 36]).astype(np.int32)
+    mesh = ipctk.CollisionMesh(np.asfortranarray(v), ipctk.edges(faces), faces)
+    col = ipctk.NormalCollisions()
+    col.build(mesh, np.asfortranarray(v), 0.02)
+    tangential = ipctk.TangentialCollisions()
+    tangential.build(mesh, np.asfortranarray(v), col, ipctk.BarrierPotential(0.02, 1.0), 0.3)
+    return mesh, tangential
+
+
+def test_friction_lag_reads_every_contact_kind_as_ipctk_gives_it():
+    """LaggedFriction.lag reads ipctk's contacts kind by kind in bulk: per contact, in the order
+    vv, ev, ee, fv, then the table's, the stencil ids of ipctk's vertex_ids, P = T^T G and
+    c = mu w lambda, as ipctk's per-contact accessors give them."""
+    from clothfold_ros.sim.friction import LaggedFriction
+
+    counts = dict.fromkeys(("vv_collisions", "ev_collisions", "ee_collisions", "fv_collisions"), 0)
+    for offset in ((0.0, 0.0), (0.1, 0.0), (0.07, 0.04)):  # vertex over vertex, over edges, anywhere
+        mesh, tangential = _two_grids(offset)
+        contacts = [cc for n in counts for cc in getattr(tangential, n)]
+        for n in counts:
+            counts[n] += len(getattr(tangential, n))
+        f = LaggedFriction(1e-4)
+        f.lag(tangential, mesh, 0.3, np.array([3, 40]), np.array([0.5, 2.0]))
+        assert len(f) == len(contacts) + 2 and f.ids.dtype == np.int64
+        for cc, ids, P, c in zip(contacts, f.ids, f.P, f.c):
+            v = np.asarray(cc.vertex_ids(mesh.edges, mesh.faces))
+            k = int(np.count_nonzero(v >= 0))
+            assert np.array_equal(ids, np.where(v >= 0, v, -1))
+            assert np.array_equal(P[:, :3 * k], np.asarray(cc.tangent_basis).T @ cc.relative_velocity_jacobian())
+            assert not P[:, 3 * k:].any() and c == 0.3 * (cc.weight * cc.normal_force_magnitude)
+        assert np.array_equal(f.ids[-2:, 0], [3, 40]) and np.array_equal(f.c[-2:], 0.3 * np.array([0.5, 2.0]))
+        assert (f.P[-2:, 0, 0] == 1).all() and (f.P[-2:, 1, 1] == 1).all()
+    assert min(counts.values()) > 0, counts  # every kind of contact was read
+    with pytest.raises(ValueError, match="table forces"):
+        LaggedFriction(1e-4).lag(tangential, mesh, 0.3, np.array([3, 40]), np.array([0.5]))
 
 
 def _table_friction(eps: float, force: float):

@@ -49,7 +49,8 @@ class TableSelector:
         #: partial tables (a sweep still under way), left out while a complete table exists: the
         #: sweep simulates the fan ring by ring from the lowest height, so a partial table ranks
         #: only the low corner of the fan and would confine the choice to it
-        self.partial = sorted(n for n, t in self.tables.items() if not t.provenance.get("complete", True))
+        self.partial = sorted(n for n, t in self.tables.items()
+                              if not t.provenance.get("complete", True) and n not in self.unusable)
         complete = {n: t for n, t in self.tables.items() if n not in self.partial}
         if not any(t.success.any() for t in complete.values()):
             complete, self.partial = dict(self.tables), []
@@ -79,8 +80,10 @@ class TableSelector:
                 f"m^2, {len(t.point)} fan points{'' if t.provenance.get('complete', True) else ' (incomplete)'}")
         if t.fold_type != feats["fold_type"]:  # nearest neighbour across fold types: say so
             kinds = {k.feature_code: k.name for k in FOLD_KINDS.values()}
-            note += (f"; a {kinds.get(t.fold_type, t.fold_type)} table for a {fold_type(fold_name)} fold: "
-                     f"no complete {fold_type(fold_name)} table yet")
+            kind = fold_type(fold_name)
+            own = any(u.fold_type == feats["fold_type"] and u.success.any() for u in self.choosable.values())
+            note += (f"; a {kinds.get(t.fold_type, t.fold_type)} table for a {kind} fold: "
+                     + (f"the {kind} tables are farther" if own else f"no complete {kind} table yet"))
         note += self._left_out()
         end_angle = float(t.provenance.get("settings", {}).get("end_angle_deg", LEGACY_END_ANGLE_DEG))
         return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note, end_angle)

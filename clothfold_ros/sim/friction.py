@@ -110,8 +110,11 @@ class LaggedFriction:
         """Read ipctk's cloth-cloth tangential collisions (built at the lag positions with the
         Coulomb coefficient mu) and add the table contacts of `table_vertices` with normal
         forces `table_forces`. About 6 us per contact (ipctk's Python accessors), once a step."""
-        groups = [_read_group(name, getattr(tangential, name), mesh.edges, mesh.faces) for name in _CLOTH_CONTACTS]
         n_table = len(table_vertices)
+        if len(table_forces) != n_table:
+            raise ValueError(f"{len(table_forces)} table forces for {n_table} table vertices")
+        edges, faces = mesh.edges, mesh.faces
+        groups = [_read_group(name, getattr(tangential, name), edges, faces) for name in _CLOTH_CONTACTS]
         table_ids = np.full((n_table, STENCIL), -1, dtype=np.int64)
         table_ids[:, 0] = table_vertices
         table_P = np.zeros((n_table, 2, 3 * STENCIL))
