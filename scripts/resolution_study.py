@@ -45,7 +45,8 @@ def read_rows(path: Path) -> dict[int, dict]:
 
 
 def spread(args: argparse.Namespace) -> int:
-    from clothfold_ros.lookup.sweep import Job, fan_points, run_job
+    from clothfold_ros.lookup.fan_selection import fan_points
+    from clothfold_ros.lookup.sweep import Job, run_job
     from clothfold_ros.lookup.sweep_dir import read_settings
     from clothfold_ros.trajectory import fan
 

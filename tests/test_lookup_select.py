@@ -4,11 +4,13 @@ from __future__ import annotations
 import csv
 import json
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from clothfold_ros.lookup.fan_selection import COVERAGE_LEVELS, fan_points
 from clothfold_ros.lookup.planner_selector import Selection, TableSelector
 from clothfold_ros.lookup.plot import plot_best_worst, plot_landscape, plot_overview
 from clothfold_ros.lookup.regret import evaluate, mean_regret, middle_of_fan, report, success_rate, summary, worst_regret
@@ -344,9 +346,10 @@ def test_best_worst_marks_folded_over_cloth_by_its_facing() -> None:
 
 
 def test_table_selector_leaves_partial_tables_out_and_names_them(tmp_path: Path) -> None:
-    """A partial table (sweep under way) ranks only the fan's low corner: the planner leaves it
-    out while complete tables exist and says so in every note; a side fold then takes the
-    nearest complete table, of another fold type, and the note says that too."""
+    """A partial table (sweep under way) that lacks the fan's coarse subsample ranks only part of
+    the fan: the planner leaves it out while complete tables exist and says so in every note; a
+    side fold then takes the nearest complete table, of another fold type, and the note says
+    that too. One that holds the coarse subsample is used."""
     kp = flat_keypoints(1, "cotton")
     _write_table_dir(tmp_path / "shape1", _table("shape1", _bowl(66)))
     low = np.arange(16)  # the first rings of the fan, as a sweep leaves them
@@ -368,6 +371,18 @@ def test_table_selector_leaves_partial_tables_out_and_names_them(tmp_path: Path)
     s = TableSelector(tmp_path).select(fold_name="left_side", stage=2, **args)
     assert s.scenario == "both_sides" and s.height_ratio in FAN[low, 0] and "partial" not in s.note
     assert "fold:" not in s.note
+    # a partial table that holds the coarse subsample a sweep runs first spans the fan: it is used
+    spread = np.array(sorted(set(fan_points(COVERAGE_LEVELS[0]).tolist()) | {0, 1}))
+    side_spread = _table("both_sides", _bowl(58)[spread], side.features, points=spread)
+    shutil.rmtree(tmp_path / "both_sides")
+    _write_table_dir(tmp_path / "both_sides", side_spread)
+    prov.write_text(json.dumps({"resolution": {"max_area_m2": 5e-5}, "complete": False}))
+    sel = TableSelector(tmp_path)
+    assert sel.partial == [] and "both_sides" in sel.choosable
+    s = sel.select(fold_name="left_side", stage=2, **args)
+    assert s.scenario == "both_sides" and "(incomplete)" in s.note and s.height_ratio in FAN[spread, 0]
+    shutil.rmtree(tmp_path / "both_sides")
+    _write_table_dir(tmp_path / "both_sides", side)
     prov.write_text(json.dumps({"resolution": {"max_area_m2": 5e-5}, "complete": False}))
     (tmp_path / "shape1" / "table.csv").unlink()  # only partial tables: they are used
     s = TableSelector(tmp_path).select(fold_name="left_side", stage=2, **args)

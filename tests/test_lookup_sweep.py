@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clothfold_ros.lookup.sweep import SweepSettings, fan_points, load_final, run_sweep, table_is_current
+from clothfold_ros.lookup.fan_selection import COVERAGE_LEVELS, coverage_order, fan_points
+from clothfold_ros.lookup.sweep import SweepSettings, load_final, run_sweep, table_is_current
 from clothfold_ros.lookup.sweep_dir import read_runs
 from clothfold_ros.lookup.table import load_table, write_table
 
@@ -126,6 +127,35 @@ def test_settings_mismatch_and_fan_selection(tmp_path: Path) -> None:
     assert 60 < len(alt) < 134 and {0, 1, 133}.issubset(set(alt.tolist()))
     with pytest.raises(ValueError):
         fan_points("7,999")
+
+
+def test_a_sweep_covers_the_fan_coarse_to_fine(tmp_path: Path, monkeypatch) -> None:
+    """Points run level by level of COVERAGE_LEVELS (the coarse tables' 12 points first), so a
+    table left partial spans the fan instead of its lowest rings."""
+    order = coverage_order(range(134))
+    assert sorted(order) == list(range(134))
+    coarse = fan_points(COVERAGE_LEVELS[0]).tolist()
+    assert order[:12] == coarse and 133 in coarse and 0 not in coarse
+    seen: set[int] = set()
+    for level in COVERAGE_LEVELS:  # each level's points come before any point only a finer level holds
+        pts = [p for p in fan_points(level).tolist() if p not in seen]
+        assert order[len(seen):len(seen) + len(pts)] == pts
+        seen.update(pts)
+    assert coverage_order([5, 133, 0]) == [133, 0, 5]
+
+    from clothfold_ros.lookup import sweep
+
+    ran: list[int] = []
+
+    def fake(job):
+        ran.append(job.point)
+        return {"point": job.point, "height_ratio": job.height_ratio, "tilt_deg": job.tilt_deg, "loss_m": 0.01,
+                "success": True, "reason": "", "wall_time_s": 0.0, "cpu_time_s": 0.0, "newton_iterations": 1,
+                "steps": 1, "solver_commit": "test"}, None
+
+    monkeypatch.setattr(sweep, "_local", lambda jobs, n: (fake(j) for j in jobs))
+    run_sweep(SweepSettings("T1", **TINY), tmp_path / "T1", [0, 1, 2, 4, 133], workers=1, progress=False)
+    assert ran == [2, 4, 133, 0, 1]
 
 
 def test_end_angle_is_a_sweep_setting_and_legacy_sweeps_were_175(tmp_path: Path) -> None:

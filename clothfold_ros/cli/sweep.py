@@ -40,7 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..lookup.scenario import scenario
-    from ..lookup.sweep import SweepSettings, fan_points, finish, run_sweep, table_is_current
+    from ..lookup.fan_selection import fan_points
+    from ..lookup.sweep import SweepSettings, finish, run_sweep, table_is_current
 
     try:
         sc = scenario(args.scenario)

@@ -10,6 +10,7 @@ import numpy as np
 
 from .scenario import STAGE_OF_FOLD, features
 from .select import choose
+from .fan_selection import COVERAGE_LEVELS, fan_points
 from .sweep_dir import LEGACY_END_ANGLE_DEG
 from .table import load_layered_tables, table_roots
 
@@ -46,11 +47,15 @@ class TableSelector:
         self.unusable = sorted(n for n, t in self.tables.items() if not t.success.any())
         if len(self.unusable) == len(self.tables):
             raise ValueError(f"TableSelector: no table in {self.table_dir} has a successful run")
-        #: partial tables (a sweep still under way), left out while a complete table exists: the
-        #: sweep simulates the fan ring by ring from the lowest height, so a partial table ranks
-        #: only the low corner of the fan and would confine the choice to it
+        #: partial tables (a sweep still under way) that do not yet hold the coarse subsample of the
+        #: fan a sweep runs first (sweep.COVERAGE_LEVELS[0], the shipped coarse tables' points),
+        #: left out while a complete table exists: they rank only part of the fan and would
+        #: confine the choice to it (tables swept ring by ring from the lowest height before
+        #: 2026-12-06 hold the low corner)
+        coarse = set(fan_points(COVERAGE_LEVELS[0]).tolist())
         self.partial = sorted(n for n, t in self.tables.items()
-                              if not t.provenance.get("complete", True) and n not in self.unusable)
+                              if not t.provenance.get("complete", True) and n not in self.unusable
+                              and not coarse <= set(t.point.tolist()))
         complete = {n: t for n, t in self.tables.items() if n not in self.partial}
         if not any(t.success.any() for t in complete.values()):
             complete, self.partial = dict(self.tables), []

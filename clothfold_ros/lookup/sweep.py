@@ -26,11 +26,12 @@ from ..sim.runner import flat_start
 from ..sim.scene import Scene, SceneSettings, build_scene
 from ..trajectory import fan
 from . import sweep_dir as layout
+from .fan_selection import coverage_order
 from .scenario import features, grip_distance, scenario, spec_for
 from .sweep_dir import SweepSettings, load_final, read_start
 from .table import git_commit, write_table
 
-__all__ = ["Job", "Progress", "SweepSettings", "fan_points", "finish", "load_final", "prepare_start", "run_job",
+__all__ = ["Job", "Progress", "SweepSettings", "finish", "load_final", "prepare_start", "run_job",
            "run_sweep", "stage_target"]
 
 
@@ -43,46 +44,6 @@ class Job:
     height_ratio: float
     tilt_deg: float
     start_file: str | None  # start.npz of a sequence stage (vertices, target_base)
-
-
-def fan_points(selection: str = "all") -> np.ndarray:
-    """Fan indices (into trajectory.fan()) for a selection:
-
-    - 'all': the 134 points;
-    - 'every:R:T': every R-th ring counted down from the outermost (h = 1.0 always kept)
-      and, within a kept ring, every T-th tilt from 60 deg with the 0 deg end kept;
-    - 'alternate' = 'every:1:2';
-    - a comma list of indices.
-    """
-    f = fan()
-    if selection == "all":
-        return np.arange(len(f))
-    if selection == "alternate":
-        selection = "every:1:2"
-    if selection.startswith("every:"):
-        try:
-            r_step, t_step = (int(v) for v in selection.split(":")[1:])
-        except ValueError:
-            raise ValueError(f"fan selection 'every:R:T' needs two integers, got {selection!r}") from None
-        if r_step < 1 or t_step < 1:
-            raise ValueError(f"'every:R:T' needs R, T >= 1, got {selection!r}")
-        heights = np.unique(f[:, 0])
-        keep: list[int] = []
-        for i, h in enumerate(heights):
-            if (len(heights) - 1 - i) % r_step:
-                continue
-            ring = np.flatnonzero(f[:, 0] == h)
-            j = np.arange(len(ring))
-            keep += ring[(j % t_step == 0) | (j == len(ring) - 1)].tolist()
-        return np.asarray(sorted(keep))
-    try:
-        idx = np.asarray(sorted({int(s) for s in selection.split(",") if s.strip()}))
-    except ValueError:
-        raise ValueError(f"fan points must be 'all', 'alternate', 'every:R:T' or comma-separated indices, "
-                         f"got {selection!r}") from None
-    if len(idx) == 0 or idx.min() < 0 or idx.max() >= len(f):
-        raise ValueError(f"fan indices must be in 0..{len(f) - 1}, got {selection!r}")
-    return idx
 
 
 def _scene(s: SweepSettings) -> Scene:
@@ -300,7 +261,7 @@ def _run_locked(settings: SweepSettings, d: Path, points: Iterable[int], workers
         layout.write_info(d, info)
     start = layout.start_file(d)
     f = fan()
-    todo = layout.pending(d, points)
+    todo = coverage_order(layout.pending(d, points))
     jobs = [Job(settings, p, float(f[p, 0]), float(f[p, 1]), start) for p in todo]
     bar = Progress(len(jobs), settings.scenario, progress)
     n_workers = workers or len(os.sched_getaffinity(0))
