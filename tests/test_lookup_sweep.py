@@ -213,3 +213,20 @@ def test_table_only_writes_a_partial_table_and_stages_refuse_to_start_from_it(tm
     with pytest.raises(ValueError, match="partial"):
         run_sweep(SweepSettings("both_sleeves", **TINY), tmp_path / "both_sleeves", [96], workers=1, progress=False,
                   previous_dir=tmp_path / "shape1")
+
+
+def test_read_packed_takes_runs_finished_after_the_last_pack(tmp_path: Path) -> None:
+    """A sweep resumed after its pack keeps new finals as per-run files until it packs again:
+    the best/worst picture of that partial table reads both."""
+    from clothfold_ros.lookup.sweep_dir import FINALS, final_key, pack_finals, read_packed
+
+    tri, start = np.array([[0, 1, 2]]), np.zeros((3, 3))
+    (tmp_path / FINALS).mkdir()
+    np.save(tmp_path / FINALS / f"{final_key(1)}.npy", np.full((3, 3), 1.0, dtype=np.float32))
+    pack_finals(tmp_path, tri, start, start, [1])
+    (tmp_path / FINALS).mkdir()
+    np.save(tmp_path / FINALS / f"{final_key(2)}.npy", np.full((3, 3), 2.0, dtype=np.float32))
+    _, _, finals = read_packed(tmp_path, [1, 2])
+    assert finals[1][0, 0] == 1.0 and finals[2][0, 0] == 2.0
+    with pytest.raises(FileNotFoundError, match="point 3"):
+        read_packed(tmp_path, [3])

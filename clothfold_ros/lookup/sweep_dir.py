@@ -243,12 +243,13 @@ def pack_finals(d: str | Path, triangles: np.ndarray, start: np.ndarray, target:
 
 
 def read_packed(d: str | Path, points) -> tuple[np.ndarray, np.ndarray, dict[int, np.ndarray]]:
-    """(triangles, target, {point: final vertices}) from finals.npz."""
+    """(triangles, target, {point: final vertices}) from finals.npz; the final state of a run
+    finished after the last pack (a sweep still under way) comes from its per-run file."""
     p = Path(d) / FINALS_NPZ
     if not p.exists():
         raise FileNotFoundError(f"no final states ({FINALS_NPZ}) in {d}")
     with np.load(p) as z:
-        return z["triangles"], z["target"], {int(k): z[final_key(k)] for k in points}
+        return z["triangles"], z["target"], {int(k): load_final(d, int(k)) for k in points}
 
 
 # -- tables under a root ----------------------------------------------------------------------
