@@ -9,8 +9,8 @@ from typing import Mapping
 import numpy as np
 
 from .scenario import STAGE_OF_FOLD, features
-from .select import choose
 from .fan_selection import COVERAGE_LEVELS, fan_points
+from .select import choose
 from .sweep_dir import LEGACY_END_ANGLE_DEG
 from .table import load_layered_tables, table_roots
 
@@ -48,7 +48,7 @@ class TableSelector:
         if len(self.unusable) == len(self.tables):
             raise ValueError(f"TableSelector: no table in {self.table_dir} has a successful run")
         #: partial tables (a sweep still under way) that do not yet hold the coarse subsample of the
-        #: fan a sweep runs first (sweep.COVERAGE_LEVELS[0], the shipped coarse tables' points),
+        #: fan a sweep runs first (fan_selection.COVERAGE_LEVELS[0], the shipped coarse tables' points),
         #: left out while a complete table exists: they rank only part of the fan and would
         #: confine the choice to it (tables swept ring by ring from the lowest height before
         #: 2026-12-06 hold the low corner)

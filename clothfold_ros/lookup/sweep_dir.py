@@ -248,8 +248,9 @@ def read_packed(d: str | Path, points) -> tuple[np.ndarray, np.ndarray, dict[int
     p = Path(d) / FINALS_NPZ
     if not p.exists():
         raise FileNotFoundError(f"no final states ({FINALS_NPZ}) in {d}")
-    with np.load(p) as z:
-        return z["triangles"], z["target"], {int(k): load_final(d, int(k)) for k in points}
+    with np.load(p) as z:  # one open archive for every point it holds
+        return z["triangles"], z["target"], {int(k): z[final_key(k)] if final_key(k) in z else load_final(d, int(k))
+                                             for k in points}
 
 
 # -- tables under a root ----------------------------------------------------------------------
