@@ -4,7 +4,7 @@
 the good loss must be below 2 cm, the method's threshold of a failed sleeve fold (with grasp springs
 instead of the rigid box it measured 10.2 mm, 8.9 mm rigid; coarse meshes are chaotic for
 this fold: at 3K the same point ended 2.6 mm and 10.8 mm with two solver variants that
-differ only in how the Hessian pattern grows, README). 5e-4 m^2 triangles (about 1.2K) is the coarsest mesh that
+differ only in how the Hessian pattern grows, measured when this check was written). 5e-4 m^2 triangles (about 1.2K) is the coarsest mesh that
 folds without dragging the whole shirt: at 1e-3 m^2 and above, triangles of 4-6 cm
 cannot buckle, the sleeve pushes the body across the table and no (h, tilt) folds well.
 A failed simulation counts as worse than any completed fold (it is reported, not hidden).
