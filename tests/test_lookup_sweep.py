@@ -230,3 +230,31 @@ def test_read_packed_takes_runs_finished_after_the_last_pack(tmp_path: Path) -> 
     assert finals[1][0, 0] == 1.0 and finals[2][0, 0] == 2.0
     with pytest.raises(FileNotFoundError, match="point 3"):
         read_packed(tmp_path, [3])
+
+
+def test_a_pack_that_fails_keeps_the_old_archive_and_the_per_run_files(tmp_path: Path, monkeypatch) -> None:
+    """finals.npz holds points whose per-run files the last pack removed: a pack that dies
+    while writing (disk full, killed) must leave it whole, and keep the new per-run files."""
+    from clothfold_ros.lookup import sweep_dir
+    from clothfold_ros.lookup.sweep_dir import FINALS, FINALS_NPZ, final_key, pack_finals, read_packed
+
+    tri, start = np.array([[0, 1, 2]]), np.zeros((3, 3))
+    (tmp_path / FINALS).mkdir()
+    np.save(tmp_path / FINALS / f"{final_key(1)}.npy", np.full((3, 3), 1.0, dtype=np.float32))
+    pack_finals(tmp_path, tri, start, start, [1])
+    before = (tmp_path / FINALS_NPZ).read_bytes()
+    (tmp_path / FINALS).mkdir()
+    np.save(tmp_path / FINALS / f"{final_key(2)}.npy", np.full((3, 3), 2.0, dtype=np.float32))
+
+    def dies_half_way(file, **arrays):
+        Path(file).write_bytes(b"PK\x03\x04 half an archive")
+        raise OSError("No space left on device")
+
+    monkeypatch.setattr(sweep_dir.np, "savez_compressed", dies_half_way)
+    with pytest.raises(OSError, match="No space"):
+        pack_finals(tmp_path, tri, start, start, [1, 2])
+    monkeypatch.undo()
+    assert (tmp_path / FINALS_NPZ).read_bytes() == before
+    assert not list(tmp_path.glob(".*")), "temporary archive left behind"
+    _, _, finals = read_packed(tmp_path, [1, 2])
+    assert finals[1][0, 0] == 1.0 and finals[2][0, 0] == 2.0

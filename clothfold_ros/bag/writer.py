@@ -17,6 +17,7 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
+from ..files import replacing
 from . import layout
 from .definitions import message_definition
 from .errors import BagError
@@ -183,9 +184,8 @@ class BagWriter:
         finally:
             self._stream.close()
         if self.metadata_path is not None:
-            tmp = self.metadata_path.with_suffix(".yaml.tmp")
-            tmp.write_text(text, encoding="utf-8")
-            tmp.replace(self.metadata_path)
+            with replacing(self.metadata_path) as tmp:  # metadata.yaml.tmp
+                tmp.write_text(text, encoding="utf-8")
 
     def _check_open(self) -> None:
         if self.closed:

@@ -8,7 +8,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .scenario import STAGE_OF_FOLD, features
+from .scenario import FOLD_TYPE_NAME, STAGE_OF_FOLD, features
 from .fan_selection import COVERAGE_LEVELS, fan_points
 from .select import choose
 from .sweep_dir import LEGACY_END_ANGLE_DEG
@@ -69,7 +69,7 @@ class TableSelector:
         mapped to the table stage group (STAGE_OF_FOLD). Raises ValueError for unknown
         folds/materials or keypoints that define no fold.
         """
-        from ..folding import FOLD_KINDS, FOLD_SEQUENCE, fold_type
+        from ..folding import FOLD_SEQUENCE, fold_type
 
         if not (isinstance(stage, (int, np.integer)) and 0 <= stage < len(FOLD_SEQUENCE)):
             raise ValueError(f"stage must be a FOLD_SEQUENCE index 0..{len(FOLD_SEQUENCE) - 1}, got {stage!r}")
@@ -84,10 +84,9 @@ class TableSelector:
                 f"table {self.origin[t.name] / t.name}, max_area {t.provenance.get('resolution', {}).get('max_area_m2')} "
                 f"m^2, {len(t.point)} fan points{'' if t.provenance.get('complete', True) else ' (incomplete)'}")
         if t.fold_type != feats["fold_type"]:  # nearest neighbour across fold types: say so
-            kinds = {k.feature_code: k.name for k in FOLD_KINDS.values()}
             kind = fold_type(fold_name)
             own = any(u.fold_type == feats["fold_type"] and u.success.any() for u in self.choosable.values())
-            note += (f"; a {kinds.get(t.fold_type, t.fold_type)} table for a {kind} fold: "
+            note += (f"; a {FOLD_TYPE_NAME.get(t.fold_type, t.fold_type)} table for a {kind} fold: "
                      + (f"the {kind} tables are farther" if own else f"no complete {kind} table yet"))
         note += self._left_out()
         end_angle = float(t.provenance.get("settings", {}).get("end_angle_deg", LEGACY_END_ANGLE_DEG))

@@ -32,7 +32,9 @@ FEATURE_SCALES: dict[str, float] = {
     "fold_type": 0.2,  # 0 sleeve / 1 side / 2 middle: a different fold type is 5 units away
 }
 FEATURE_NAMES: tuple[str, ...] = tuple(FEATURE_SCALES)
-_FOLD_TYPE_CODE = {k.name: k.feature_code for k in FOLD_KINDS.values()}
+#: Fold type name -> its `fold_type` feature code (from the fold registry), and back.
+FOLD_TYPE_CODE: dict[str, float] = {k.name: k.feature_code for k in FOLD_KINDS.values()}
+FOLD_TYPE_NAME: dict[float, str] = {code: name for name, code in FOLD_TYPE_CODE.items()}
 
 
 @dataclass(frozen=True)
@@ -177,7 +179,7 @@ def features(*, fold_name: str, keypoints: Mapping[str, np.ndarray], material_na
         "friction": float(friction),
         "log2_duration": math.log2(duration),
         "stage": float(STAGE_OF_FOLD[fold_name] if stage is None else stage),
-        "fold_type": _FOLD_TYPE_CODE[kind],
+        "fold_type": FOLD_TYPE_CODE[kind],
     }
 
 

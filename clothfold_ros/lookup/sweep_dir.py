@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import replacing
 from ..sim.config import SimConfig
 from .scenario import scenario
 
@@ -199,9 +200,9 @@ def append_run(d: str | Path, row: dict, final: np.ndarray | None) -> None:
     d = Path(d)
     if final is not None:
         (d / FINALS).mkdir(exist_ok=True)
-        tmp = d / FINALS / f".{final_key(row['point'])}.npy"
-        np.save(tmp, final)
-        os.replace(tmp, d / FINALS / f"{final_key(row['point'])}.npy")
+        name = f"{final_key(row['point'])}.npy"
+        with replacing(d / FINALS / name, "." + name) as tmp:  # keeps .npy: np.save adds it otherwise
+            np.save(tmp, final)
     with open(d / RUNS, "a") as f:
         f.write(json.dumps(row) + "\n")
         f.flush()
@@ -234,7 +235,9 @@ def pack_finals(d: str | Path, triangles: np.ndarray, start: np.ndarray, target:
             arrays[final_key(p)] = load_final(d, p)
         except FileNotFoundError:
             pass  # failed before any fold finished: no final state
-    np.savez_compressed(d / FINALS_NPZ, **arrays)
+    # aside and renamed: the old archive holds points whose per-run files are gone
+    with replacing(d / FINALS_NPZ, "." + FINALS_NPZ) as tmp:  # keeps .npz: np.savez adds it otherwise
+        np.savez_compressed(tmp, **arrays)
     if (d / FINALS).exists():
         for f in (d / FINALS).glob("*.npy"):
             f.unlink()

@@ -13,7 +13,6 @@ from __future__ import annotations
 import csv
 import datetime as _dt
 import json
-import os
 import subprocess
 from collections import Counter
 from dataclasses import asdict, dataclass
@@ -21,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import replacing
 from ..garment import make_shirt
 from . import sweep_dir as layout
 from .scenario import FEATURE_NAMES, scenario
@@ -77,18 +77,6 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
     sc = scenario(settings["scenario"])
     garment = make_shirt(sc.shape, max_area=settings["max_area"])
     rows = layout.read_runs(d)
-    tmp = d / (TABLE + ".tmp")  # written aside and renamed: a reader never sees half a table
-    with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=COLUMNS)
-        w.writeheader()
-        for r in rows:
-            w.writerow({"scenario": sc.name, "folds": "+".join(sc.folds), "shape": sc.shape, "material": sc.material,
-                        **{k: f"{info['features'][k]:.6g}" for k in FEATURE_NAMES},
-                        "point": r["point"], "height_ratio": f"{r['height_ratio']:.6g}",
-                        "tilt_deg": f"{r['tilt_deg']:.6g}", "loss_m": f"{r['loss_m']:.6g}",
-                        "success": int(bool(r["success"])), "reason": r["reason"], "wall_time_s": r["wall_time_s"],
-                        "newton_iterations": r["newton_iterations"], "steps": r["steps"],
-                        "max_area_m2": settings["max_area"], "vertices": len(garment.vertices)})
     done = {int(r["point"]) for r in rows}
     missing = sorted(set(points) - done)
     best = layout.best_row(rows)
@@ -107,10 +95,20 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
         "cpu_seconds": round(sum(r.get("cpu_time_s", r["wall_time_s"]) for r in rows), 1),  # wall where not recorded
         "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
     }
-    prov_tmp = d / (PROVENANCE + ".tmp")
-    prov_tmp.write_text(json.dumps(prov, indent=1))
-    os.replace(tmp, d / TABLE)
-    os.replace(prov_tmp, d / PROVENANCE)
+    # both written aside and renamed (the table first, as the inner one): a reader never sees half a table
+    with replacing(d / PROVENANCE) as prov_tmp, replacing(d / TABLE) as tmp:
+        with open(tmp, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=COLUMNS)
+            w.writeheader()
+            for r in rows:
+                w.writerow({"scenario": sc.name, "folds": "+".join(sc.folds), "shape": sc.shape,
+                            "material": sc.material, **{k: f"{info['features'][k]:.6g}" for k in FEATURE_NAMES},
+                            "point": r["point"], "height_ratio": f"{r['height_ratio']:.6g}",
+                            "tilt_deg": f"{r['tilt_deg']:.6g}", "loss_m": f"{r['loss_m']:.6g}",
+                            "success": int(bool(r["success"])), "reason": r["reason"], "wall_time_s": r["wall_time_s"],
+                            "newton_iterations": r["newton_iterations"], "steps": r["steps"],
+                            "max_area_m2": settings["max_area"], "vertices": len(garment.vertices)})
+        prov_tmp.write_text(json.dumps(prov, indent=1))
     return d / TABLE
 
 

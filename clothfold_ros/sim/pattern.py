@@ -245,7 +245,7 @@ class HessianPattern:
         rows, cols = csc.indices[at].astype(np.int64), np.searchsorted(csc.indptr, at, side="right") - 1
         miss_keys = rows // BLOCK * self.nv + cols // BLOCK
         if grow:
-            self._insert(self._with_neighbours(np.unique(miss_keys)))
+            self._add(miss_keys)
             value_slots = _stored_entry_slots(csc.indptr, csc.indices, self.indptr, self.indices)[keep]
             self.last_used[value_slots // (BLOCK * BLOCK)] = self.solves
             return value_slots, vals, True
@@ -277,7 +277,7 @@ class HessianPattern:
 
     def _grow_to(self, keys: np.ndarray, missing: np.ndarray) -> np.ndarray:
         """Add the missing ones of `keys` (with their neighbours' pairs); their slots, marked used."""
-        self._insert(self._with_neighbours(np.unique(keys[missing])))
+        self._add(keys[missing])
         slots = np.searchsorted(self.keys, keys)
         self.last_used[slots] = self.solves
         return slots
@@ -286,8 +286,12 @@ class HessianPattern:
         """Add the blocks deferred by contact_slots(grow=False); True if the pattern grew."""
         if not len(self.pending):
             return False
-        new = self._with_neighbours(self.pending)
-        self.pending = np.zeros(0, dtype=np.int64)
+        pending, self.pending = self.pending, np.zeros(0, dtype=np.int64)
+        return self._add(pending)
+
+    def _add(self, keys: np.ndarray) -> bool:
+        """Insert the block keys among `keys` the pattern lacks, with their neighbours' pairs; True if any were."""
+        new = self._with_neighbours(np.unique(keys))
         if not len(new):
             return False
         self._insert(new)
