@@ -211,3 +211,36 @@ def test_repeated_bad_input_keeps_being_logged(rig):
     r.target.publish(bad)
     line = _log(r, "(#6 of this kind")
     assert "4 more not logged" in line, line
+
+
+def test_announcement_arriving_after_its_start_fails_the_fold_at_once(rig):
+    """/fold/active whose start the clock has passed while its motion is under way: the backend
+    cannot run it and says so on /fold/result at once (the sender would otherwise wait for a
+    result until its result_timeout); a latched announcement of a fold long over gets no result."""
+    r = rig
+    before = len(r.results)
+    now = _now(r)
+    _announce(r, max(now - 10 * DT_NS, 1), 30.0)  # started 0.4 s ago, runs 30 s more
+    res = _result(r, before, timeout=10.0)
+    assert not res.success and res.fold_name == "left_sleeve", res.reason
+    assert "came too late" in res.reason and "before the clock" in res.reason, res.reason
+    old = _now(r, after_ns=now + 100 * DT_NS)  # 4 s of sim time later
+    n = len(r.results)
+    _announce(r, old - 80 * DT_NS, 1.0)  # over 2.2 s ago
+    _log(r, f"starts at {(old - 80 * DT_NS) * 1e-9:.3f} s, before the clock")
+    time.sleep(0.5)
+    assert len(r.results) == n, [m.reason for m in r.results[n:]]
+
+
+def test_fold_cancelled_before_its_start_does_not_hold_the_clock(rig):
+    """trajectory_node cancelled before streaming: close and open come stamped t0 with no target
+    pose; the backend drops the close and must not keep holding the clock at the announced start
+    (this rig's stall_timeout is 600 s: a held clock fails the wait below)."""
+    r = rig
+    t0 = (_now(r) // DT_NS + 25) * DT_NS  # 1 s of sim time ahead
+    _announce(r, t0, 2.0)
+    time.sleep(0.2)
+    _command(r, t0, 0.0)
+    _command(r, t0, 0.08)
+    _now(r, after_ns=t0 + 50 * DT_NS, timeout=15.0)
+    _log(r, f"close at {t0 * 1e-9:.3f} s dropped: the fold was cancelled before it started")

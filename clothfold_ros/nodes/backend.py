@@ -178,8 +178,15 @@ class LockStepBackend(Node):
             self.error_once("active", f"/fold/active ignored: {err}")
             return
         if plan.stamp_ns < self.ls.now_ns - STAMP_TOLERANCE_NS and not self._closes_pending_at(plan.stamp_ns):
-            self.error_once("old_active", f"/fold/active {plan.spec.name} ignored: it starts at "
-                            f"{plan.stamp_ns * 1e-9:.3f} s, before the clock ({self.ls.now_ns * 1e-9:.3f} s)")
+            late = (f"/fold/active {plan.spec.name} ignored: it starts at {plan.stamp_ns * 1e-9:.3f} s, before "
+                    f"the clock ({self.ls.now_ns * 1e-9:.3f} s)")
+            if self.ls.now_ns < plan.stamp_ns + rc.seconds_to_ns(plan.duration):
+                # its motion is under way without this backend: say so now, or the sender waits for a result
+                self.get_logger().error(late)
+                self.publish_result(False, f"{late}; the announcement came too late (start_delay too short for "
+                                    "the clock's pace?)", math.nan, fold=plan)
+            else:  # a latched announcement of a fold long over (this node started later)
+                self.error_once("old_active", late)
             return
         self.announced = plan
         if not self.ls.closed:
@@ -236,6 +243,7 @@ class LockStepBackend(Node):
                     if pose is None and not self.ls.closed and self._open_pending(cmd.gripper, cmd.stamp_ns):
                         self.ls.pop_command()  # cancelled before it started: the open is already queued
                         self.announced = None
+                        self.ls.hold_until = None  # nothing to wait for: the clock runs on
                         self.get_logger().warning(f"gripper_{cmd.gripper} close at {cmd.stamp_ns * 1e-9:.3f} s "
                                                   "dropped: the fold was cancelled before it started")
                         continue
@@ -359,8 +367,9 @@ class LockStepBackend(Node):
             self.get_logger().error(line)
 
     def publish_result(self, success: bool, reason: str, loss: float, steps: int = 0, newton: int = 0,
-                       wall: float = 0.0) -> None:
-        a = self.active
+                       wall: float = 0.0, fold: rc.PlannedFold | None = None) -> None:
+        """/fold/result of the running fold, or of `fold` (one this backend will not run)."""
+        a = self.active if fold is None else fold
         if success is not False and self.ended_early:
             success, reason = False, self.ended_early
         self._report_unlogged()

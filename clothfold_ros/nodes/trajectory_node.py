@@ -49,6 +49,9 @@ PARAMS = [
     Param("rate", 100.0, "target pose stream rate (Hz)", range=(1.0, 1000.0)),
     Param("start_delay", 0.5, "time from accepting a fold to closing the grippers (s, node clock)",
           range=(0.0, 10.0)),
+    Param("start_lead_wall", 0.5, "the fold starts at least this many wall seconds ahead: with a simulated clock "
+          "running faster than real time, start_delay alone may pass before the backend gets /fold/active",
+          range=(0.0, 10.0)),
     Param("lookahead", 0.2, "publish samples this far ahead of the clock (s); >= the backend's dt for lock-step, "
           "0 for a driver that executes targets on receipt", range=(0.0, 5.0)),
     Param("workspace_min", [-1.0, -1.0, 0.0], "workspace box lower corner (m, table frame)", range=(-10.0, 10.0),
@@ -137,6 +140,18 @@ class TrajectoryNode(Node):
     def now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
 
+    def _start_lead_ns(self, window: float = 0.1) -> int:
+        """Time from now to the fold's start (ns, node clock): start_delay, or more where the clock
+        runs fast enough to cover start_lead_wall in less (its pace measured over `window` wall s)."""
+        delay = rc.seconds_to_ns(params.value(self, "start_delay"))
+        lead_wall = params.value(self, "start_lead_wall")
+        if lead_wall <= 0.0:
+            return delay
+        n0, w0 = self.now_ns(), time.monotonic()
+        time.sleep(window)
+        pace = (self.now_ns() - n0) / max(time.monotonic() - w0, 1e-9)  # clock ns per wall s
+        return max(delay, int(pace * lead_wall))
+
     def command(self, grippers: range, closed: bool, stamp_ns: int) -> None:
         pos = 0.0 if closed else params.value(self, "open_position")
         for i in grippers:
@@ -215,7 +230,7 @@ class TrajectoryNode(Node):
             if reason:
                 raise RuntimeError(f"no clock: {reason}")
         times, pos, quat = traj.sample(rate)
-        t0 = self.now_ns() + rc.seconds_to_ns(params.value(self, "start_delay"))
+        t0 = self.now_ns() + self._start_lead_ns()
         self._started = (plan, t0)
         stamps = [t0 + rc.seconds_to_ns(t) for t in times]
         poses = [[Pose(pos[k, g], quat[k, g]) for g in grippers] for k in range(len(times))]
