@@ -245,6 +245,48 @@ def test_writer_rejects_bad_input(tmp_path):
         w.write("/a", b"", T0)
 
 
+@pytest.mark.parametrize("bad", [
+    dict(log_time_ns=-1), dict(log_time_ns=2**63), dict(log_time_ns=T0, publish_time_ns=-1),
+    dict(log_time_ns=T0, publish_time_ns=2**64), dict(log_time_ns=float(T0)), dict(log_time_ns=True),
+    dict(log_time_ns=T0, publish_time_ns=1.5), dict(log_time_ns="5"),
+])
+def test_writer_refuses_bad_times_and_stays_usable(tmp_path, bad):
+    """A time MCAP cannot store (not an int in [0, 2**63): uint64 for MCAP, signed for ROS 2) is refused with BagError before it
+    reaches the file: the messages before and after it are read back by this package's reader,
+    by mcap's and by rosbags, and the summary counts only them."""
+    from std_msgs.msg import String
+
+    path = tmp_path / "t.mcap"
+    first, second = serialize_message(String(data="before")), serialize_message(String(data="after"))
+    with BagWriter(path) as w:
+        w.add_topic("/s", "std_msgs/msg/String")
+        w.write("/s", first, T0, T0 - 7)
+        with pytest.raises(BagError, match=r"time .*on /s"):
+            w.write("/s", serialize_message(String(data="bad")), **bad)
+        w.write("/s", second, T0 + 1000)
+    assert w.message_count == 2
+    with BagReader(path) as b:
+        got = [(m.log_time_ns, m.publish_time_ns, m.data) for m in b.messages()]
+        assert b.message_count == 2
+    assert got == [(T0, T0 - 7, first), (T0 + 1000, T0 + 1000, second)]
+    with open(path, "rb") as f:
+        r = make_reader(f)
+        assert r.get_summary().statistics.message_count == 2
+        assert [(m.log_time, m.publish_time, m.sequence, m.data) for _, _, m in r.iter_messages()] == [
+            (T0, T0 - 7, 1, first), (T0 + 1000, T0 + 1000, 2, second)]
+    assert [(t, ts, _rb_value(m)) for t, ts, m in rosbags_messages(path)] == [
+        ("/s", T0, {"data": "before"}), ("/s", T0 + 1000, {"data": "after"})]
+
+
+def test_writer_takes_numpy_integer_times(tmp_path):
+    path = tmp_path / "n.mcap"
+    with BagWriter(path) as w:
+        w.add_topic("/s", "std_msgs/msg/String", definition="string data", type_hash="h")
+        w.write("/s", b"\x00\x01\x00\x00\x01\x00\x00\x00\x00\x00\x00\x00", np.int64(T0), np.uint64(2**63 - 1))
+    with BagReader(path) as b:
+        assert [(m.log_time_ns, m.publish_time_ns) for m in b.messages()] == [(T0, 2**63 - 1)]
+
+
 def test_playback_clock_rate():
     c = PlaybackClock(bag_start_ns=T0, wall_start=10.0, rate=2.0)
     assert c.due(T0 + 3_000_000_000) == pytest.approx(11.5)

@@ -11,6 +11,7 @@ any other path -> a rosbag2 bag directory ``<path>/<name>_0.mcap`` + ``metadata.
 """
 from __future__ import annotations
 
+import numbers
 import os
 import time
 from pathlib import Path
@@ -50,6 +51,17 @@ class _DirectFile:
 
     def close(self) -> None:
         self._f.close()
+
+
+def _time_ns(value: object, which: str, topic: str) -> int:
+    """A message time as an int in [0, 2**63) ns since the epoch (MCAP stores uint64, rosbag2's
+    metadata and ROS 2 time stamps signed 64-bit ns); BagError otherwise."""
+    if not isinstance(value, numbers.Integral) or isinstance(value, bool):
+        raise BagError(f"{which} time on {topic} must be an integer number of ns, got {value!r}")
+    value = int(value)
+    if not 0 <= value < 2**63:
+        raise BagError(f"{which} time {value} ns on {topic} is outside [0, 2**63) (ROS 2 time, signed 64-bit ns)")
+    return value
 
 
 class BagWriter:
@@ -130,11 +142,13 @@ class BagWriter:
         channel = self._channels.get(topic)
         if channel is None:
             raise BagError(f"topic {topic} was not added to the bag")
-        if log_time_ns < 0:
-            raise BagError(f"negative log time {log_time_ns} ns on {topic}")
+        # Checked before anything reaches mcap: a time it cannot pack (uint64) fails there half-way
+        # through a record and leaves the open chunk, and with it the whole file, unreadable.
+        log_time_ns = _time_ns(log_time_ns, "log", topic)
+        publish_time_ns = log_time_ns if publish_time_ns is None else _time_ns(publish_time_ns, "publish", topic)
+        payload = bytes(data)
         self._sequence[topic] += 1
-        self._mcap.add_message(channel, log_time=int(log_time_ns), data=bytes(data),
-                               publish_time=int(log_time_ns if publish_time_ns is None else publish_time_ns),
+        self._mcap.add_message(channel, log_time=log_time_ns, data=payload, publish_time=publish_time_ns,
                                sequence=self._sequence[topic] & 0xFFFFFFFF)
         self.topics[topic].message_count += 1
         self._start_ns = log_time_ns if self._start_ns is None else min(self._start_ns, log_time_ns)

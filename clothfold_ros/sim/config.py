@@ -1,7 +1,11 @@
 """Solver settings of the IPC cloth simulator (docs/method.md section 3)."""
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
+
+import numpy as np
 
 
 @dataclass(frozen=True)
@@ -46,22 +50,81 @@ class SimConfig:
     solver_threads: int = 1  # PARDISO threads (bit-for-bit reproducible with any count: MKL's CNR mode)
 
     def __post_init__(self) -> None:
-        if not self.dt > 0:
-            raise ValueError(f"dt must be > 0 s, got {self.dt}")
-        if not self.newton_tol > 0:
-            raise ValueError(f"newton_tol must be > 0 m/s, got {self.newton_tol}")
-        if self.linear_precision not in ("mixed", "double"):
-            raise ValueError(f"linear_precision must be 'mixed' or 'double', got {self.linear_precision!r}")
-        if self.pattern_growth_iterations < 1:
-            raise ValueError("pattern_growth_iterations must be >= 1")
-        if self.threads < 1 or self.ccd_threads < 1 or self.solver_threads < 1:
-            raise ValueError("threads, ccd_threads and solver_threads must be >= 1")
+        """Check every setting (ValueError naming the field and the value); values are kept as given."""
+        _real(self, "dt", 0.0, None, low_open=True, unit="s")
+        gravity = self.gravity
+        if (isinstance(gravity, (str, bytes)) or not hasattr(gravity, "__len__") or len(gravity) != 3
+                or not all(_is_real(g) and math.isfinite(g) for g in gravity)):
+            raise ValueError(f"gravity must be 3 finite numbers (m/s^2), got {gravity!r}")
+        _real(self, "newton_tol", 0.0, None, low_open=True, unit="m/s")
+        _integer(self, "newton_window", 1)
+        _integer(self, "max_newton_iterations", 1)
+        _integer(self, "max_line_search_halvings", 1, 1074)  # 0.5**n must stay > 0
+        _real(self, "model_ratio", 0.0, 1.0, high_open=True)
+        _real(self, "grasp_stiffness", 0.0, None, low_open=True, unit="1/s^2")
+        _real(self, "grasp_slip", 0.0, None, low_open=True, unit="m")
+        _choice(self, "psd_projection", ("clamp", "abs"))
+        _integer(self, "pattern_growth_rings", 0)
+        _integer(self, "pattern_keep_solves", 1)
+        _real(self, "pattern_prune_fraction", 0.0, 1.0)
+        _integer(self, "pattern_growth_iterations", 1)
+        _choice(self, "linear_solver", ("pardiso", "superlu", "auto"))
+        _choice(self, "linear_precision", ("mixed", "double"))
+        for name in ("xi", "dhat"):
+            if getattr(self, name) is not None:
+                _real(self, name, 0.0, None, low_open=True, unit="m", extra=" or None (the cloth thickness)")
+        _real(self, "ccd_fraction", 0.0, 1.0, low_open=True)
+        _real(self, "eps_v", 0.0, None, low_open=True, unit="m/s")
+        _real(self, "broad_phase_reuse", 0.0, None, unit="m")
+        _real(self, "table_margin", 0.0, None, unit="m")
         shifts = self.regularization_shifts
-        if any(not a < b for a, b in zip((0.0, *shifts), shifts)):
-            raise ValueError(f"regularization_shifts must be positive and increasing, got {shifts}")
-        if self.subspace_threshold < 0 or self.subspace_start < 1 or self.subspace_rings < 0:
-            raise ValueError("subspace_threshold must be >= 0 m/s, subspace_start >= 1 and subspace_rings >= 0")
-        if not 0.0 < self.subspace_max_share <= 1.0:
-            raise ValueError(f"subspace_max_share must be in (0, 1], got {self.subspace_max_share}")
-        if self.max_newton_iterations < 1 or self.newton_window < 1:
-            raise ValueError("max_newton_iterations and newton_window must be >= 1")
+        if (isinstance(shifts, (str, bytes)) or not hasattr(shifts, "__iter__")
+                or not all(_is_real(a) and math.isfinite(a) for a in shifts)
+                or any(not a < b for a, b in zip((0.0, *shifts), shifts))):
+            raise ValueError(f"regularization_shifts must be finite, positive and increasing, got {shifts!r}")
+        _real(self, "subspace_threshold", 0.0, None, unit="m/s")
+        _integer(self, "subspace_start", 1)
+        _integer(self, "subspace_rings", 0)
+        _real(self, "subspace_max_share", 0.0, 1.0, low_open=True)
+        if not isinstance(self.check_intersections, (bool, np.bool_)):
+            raise ValueError(f"check_intersections must be True or False, got {self.check_intersections!r}")
+        for name in ("threads", "ccd_threads", "solver_threads"):
+            _integer(self, name, 1)
+
+
+def _is_real(value: object) -> bool:
+    """A real number (Python or NumPy), not a bool (NumPy's bool_ is no numbers.Real)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _real(cfg: SimConfig, name: str, low: float | None, high: float | None, *, low_open: bool = False,
+          high_open: bool = False, unit: str = "", extra: str = "") -> None:
+    """Field `name` is a finite real number in the interval low..high (open ends as flagged)."""
+    value = getattr(cfg, name)
+    ok = _is_real(value) and math.isfinite(value)
+    if ok and low is not None:
+        ok = value > low if low_open else value >= low
+    if ok and high is not None:
+        ok = value < high if high_open else value <= high
+    if not ok:
+        if low is not None and high is not None:
+            rng = f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+        else:
+            rng = f"{'>' if low_open else '>='} {low:g}"
+        raise ValueError(f"{name} must be a finite number {rng}{' ' + unit if unit else ''}{extra}, got {value!r}")
+
+
+def _integer(cfg: SimConfig, name: str, low: int, high: int | None = None) -> None:
+    """Field `name` is an integer (not a bool) in low..high."""
+    value = getattr(cfg, name)
+    if (not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < low
+            or (high is not None and value > high)):
+        most = "" if high is None else f" and <= {high}"
+        raise ValueError(f"{name} must be >= {low}{most} (an integer), got {value!r}")
+
+
+def _choice(cfg: SimConfig, name: str, allowed: tuple[str, ...]) -> None:
+    """Field `name` is one of the strings `allowed` (exact, case-sensitive)."""
+    value = getattr(cfg, name)
+    if not isinstance(value, str) or value not in allowed:
+        raise ValueError(f"{name} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
