@@ -81,6 +81,7 @@ class FoldPlannerNode(Node):
         # Folds made so far (successful /fold/result, in order): the keypoints are those a
         # camera sees on the folded shirt, and fold_spec needs to know which folds they follow.
         self.folds_done: list[str] = []
+        self.last_result_ns = -1  # stamp of the newest /fold/result: keypoints older than it show the cloth before
         self.create_subscription(FoldResult, common.FOLD_RESULT, self.on_result, common.RESULTS,
                                  callback_group=self.group)
         self.create_service(Trigger, "~/reset", self.on_reset, callback_group=self.group)
@@ -104,13 +105,15 @@ class FoldPlannerNode(Node):
 
     def on_result(self, msg: FoldResult) -> None:
         with self.lock:
+            if msg.fold_name in FOLD_NAMES:  # failed or not, the cloth may have moved
+                self.last_result_ns = max(self.last_result_ns, rc.time_to_ns(msg.header.stamp))
             if msg.success and msg.fold_name in FOLD_NAMES and msg.fold_name not in self.folds_done:
                 self.folds_done.append(msg.fold_name)
                 self.get_logger().info(f"folds done: {', '.join(self.folds_done)}")
 
     def on_reset(self, _req, resp):
         with self.lock:
-            self.folds_done = []
+            self.folds_done, self.last_result_ns = [], -1
         resp.success, resp.message = True, "folds done forgotten (the shirt lies flat)"
         return resp
 
@@ -185,9 +188,12 @@ class FoldPlannerNode(Node):
         if name not in FOLD_NAMES:
             raise ValueError(f"unknown fold; known folds: {', '.join(FOLD_NAMES)}")
         with self.lock:
-            kp, stamp, done = self.keypoints, self.keypoints_stamp, list(self.folds_done)
+            kp, stamp, done, last = self.keypoints, self.keypoints_stamp, list(self.folds_done), self.last_result_ns
         if kp is None:
             raise ValueError(f"no keypoints received on {common.KEYPOINTS} yet")
+        if stamp < last:
+            raise ValueError(f"no keypoints of the cloth as it lies now: the newest are stamped {stamp * 1e-9:.3f} s, "
+                             f"before the last fold result ({last * 1e-9:.3f} s)")
         h, tilt, end_angle, note = self.select(name, kp)
         spec = fold_spec(name, kp, end_angle, params.value(self, "end_height"), folds_done=done)
         self.get_logger().info(f"{name}: h={h:g}, tilt={tilt:g} deg ({note}); keypoints stamped {stamp * 1e-9:.3f} s")

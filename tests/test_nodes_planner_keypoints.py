@@ -1,0 +1,43 @@
+"""fold_planner_node plans only from keypoints of the cloth as it lies now: keypoints stamped
+before the newest /fold/result (of any outcome: the cloth may have moved) are refused with a
+reason that PipelineClient.plan retries on, until newer keypoints arrive. In-process node,
+isolated ROS domain; the callbacks are called directly."""
+from __future__ import annotations
+
+import pytest
+import rclpy
+from clothfold_msgs.msg import FoldResult
+
+from clothfold_ros.garment import make_shirt
+from clothfold_ros.nodes import conversions as rc
+
+S = 1_000_000_000
+
+
+def test_keypoints_older_than_the_last_fold_result_are_not_planned_from(monkeypatch):
+    from clothfold_ros.nodes.fold_planner_node import FoldPlannerNode
+
+    g = make_shirt(1, max_area=5e-3)
+    kp = lambda t: rc.keypoints_to_msg(g.keypoints(), t)  # noqa: E731
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-p", "selection:=parameter", "-p", "use_sim_time:=true"], context=ctx,
+               domain_id=184)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+    try:
+        node = FoldPlannerNode()
+        node.on_keypoints(kp(10 * S))
+        assert node.plan("left_sleeve").fold_name == "left_sleeve"
+        node.on_result(FoldResult(header=rc.header(14 * S), fold_name="left_sleeve", success=False, reason="x"))
+        with pytest.raises(ValueError, match=r"^no keypoints of the cloth as it lies now.*10\.000 s.*14\.000 s"):
+            node.plan("left_sleeve")
+        node.on_keypoints(kp(14 * S))  # the cloth's state at the result: planned from
+        assert node.plan("left_sleeve").fold_name == "left_sleeve"
+        node.on_result(FoldResult(header=rc.header(20 * S), fold_name="left_sleeve", success=True, loss=0.004))
+        with pytest.raises(ValueError, match="no keypoints of the cloth as it lies now"):
+            node.plan("right_sleeve")
+        node.on_keypoints(kp(21 * S))
+        assert node.plan("right_sleeve").fold_name == "right_sleeve"
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
