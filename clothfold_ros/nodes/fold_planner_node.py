@@ -35,6 +35,7 @@ from ..garment import KEYPOINT_NAMES
 from . import common, params
 from .limits import DURATION_RANGE, HEIGHT_RATIO_RANGE, TILT_RANGE_DEG
 from .params import Param
+from .waiting import wait_future
 
 PARAMS = [
     Param("selection", "parameter", "how (height ratio, tilt) are chosen", choices=("parameter", "table")),
@@ -205,16 +206,22 @@ class FoldPlannerNode(Node):
         timeout = params.value(self, "goal_timeout")
         if not self.executor_client.wait_for_server(timeout_sec=timeout):
             return False, f"trajectory_node ({common.EXECUTE_FOLD}) is not available"
-        done = threading.Event()
         future = self.executor_client.send_goal_async(ExecuteFold.Goal(spec=msg))
-        future.add_done_callback(lambda _: done.set())
-        if not done.wait(timeout):
+        if not wait_future(future, timeout):
+            future.add_done_callback(_cancel_if_accepted)  # the caller is told it failed: it must not run later
             return False, f"trajectory_node did not answer within {timeout:g} s"
         handle = future.result()
         if handle is None or not handle.accepted:
             return False, ("trajectory_node refused it (a fold is running, or the motion leaves the workspace "
                            "or exceeds the speed limit; its log says which)")
         return True, ""
+
+
+def _cancel_if_accepted(future) -> None:
+    """Done-callback of a goal request given up on: cancel the goal if it was accepted after all."""
+    handle = future.result()
+    if handle is not None and handle.accepted:
+        handle.cancel_goal_async()
 
 
 def main(argv: list[str] | None = None) -> int:

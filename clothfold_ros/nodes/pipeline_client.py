@@ -20,7 +20,7 @@ from rosgraph_msgs.msg import Clock
 
 from .action_client import LockedActionClient
 from . import conversions as rc
-from .waiting import wait_until
+from .waiting import wait_future, wait_until
 from . import common
 
 
@@ -115,10 +115,8 @@ class PipelineClient:
     def _plan_once(self, fold_name: str, execute: bool, timeout: float) -> PlanFold.Response:
         if not self.plan_client.wait_for_service(timeout_sec=timeout):
             raise TimeoutError(f"{common.PLAN_FOLD} not available within {timeout:g} s")
-        done = threading.Event()
         future = self.plan_client.call_async(PlanFold.Request(fold_name=fold_name, execute=execute))
-        future.add_done_callback(lambda _: done.set())
-        if not done.wait(timeout):
+        if not wait_future(future, timeout):
             raise TimeoutError(f"{common.PLAN_FOLD} did not answer within {timeout:g} s")
         return future.result()
 
@@ -130,19 +128,15 @@ class PipelineClient:
         """Send an ExecuteFold goal straight to trajectory_node; its goal handle (accepted or not)."""
         if not self.execute_client.wait_for_server(timeout_sec=timeout):
             raise TimeoutError(f"{common.EXECUTE_FOLD} not available within {timeout:g} s")
-        done = threading.Event()
         future = self.execute_client.send_goal_async(ExecuteFold.Goal(spec=spec))
-        future.add_done_callback(lambda _: done.set())
-        if not done.wait(timeout):
+        if not wait_future(future, timeout):
             raise TimeoutError(f"{common.EXECUTE_FOLD} did not answer within {timeout:g} s")
         return future.result()
 
     def cancel(self, handle, timeout: float = 30.0) -> None:
         """Ask trajectory_node to cancel a running goal (TimeoutError if it does not answer)."""
-        done = threading.Event()
         future = handle.cancel_goal_async()
-        future.add_done_callback(lambda _: done.set())
-        if not done.wait(timeout):
+        if not wait_future(future, timeout):
             raise TimeoutError(f"cancel of the goal not answered within {timeout:g} s")
 
     def result_count(self) -> int:

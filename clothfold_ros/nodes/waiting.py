@@ -1,4 +1,5 @@
-"""Waiting on a condition variable until a probe gives a value or a deadline passes (no rclpy)."""
+"""Waiting on a condition variable until a probe gives a value or a deadline passes, and on an
+rclpy future that another thread's executor completes (no rclpy import)."""
 from __future__ import annotations
 
 import threading
@@ -23,3 +24,11 @@ def wait_until(cond: threading.Condition, probe: Callable[[], T | None], timeout
             if left <= 0:
                 return None
             cond.wait(left if poll is None else min(left, poll))
+
+
+def wait_future(future, timeout: float) -> bool:
+    """Block until `future` (an rclpy Future, completed by an executor spinning in another
+    thread) is done; False if `timeout` s pass first (the future stays pending)."""
+    done = threading.Event()
+    future.add_done_callback(lambda _: done.set())
+    return done.wait(timeout)
