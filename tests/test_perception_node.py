@@ -84,7 +84,7 @@ def test_points_good_bad_and_folded_clouds(env):
     cam = DepthCamera()
     with Launcher(domain_id=DOMAIN_POINTS, echo=False) as launcher:
         node = launcher.start("keypoint_node", node_command(
-            "keypoint_node", params={"source": "points", "use_sim_time": False}))
+            "keypoint_node", params={"source": "points", "use_sim_time": True}))  # no /clock: the stamps decide
         launcher.wait_for(node, "estimated from the point cloud", 60)
         feed = Feeder("test_perception_node")
         try:
@@ -160,7 +160,7 @@ def test_cloth_state_source_reports_visible_keypoints(env):
     g = make_shirt(1, max_area=2e-3)
     with Launcher(domain_id=DOMAIN_STATE, echo=False) as launcher:
         node = launcher.start("keypoint_node", node_command(
-            "keypoint_node", params={"source": "cloth_state", "use_sim_time": False, "max_area": 2e-3}))
+            "keypoint_node", params={"source": "cloth_state", "use_sim_time": True, "max_area": 2e-3}))  # clock 0
         launcher.wait_for(node, "publishing keypoints of the cloth", 60)
         feed = Feeder("test_perception_state")
         try:
@@ -214,7 +214,10 @@ def test_a_replayed_mid_fold_state_never_replaces_newer_keypoints(monkeypatch):
 
     g = make_shirt(1, max_area=2e-3)
     ctx = rclpy.Context()
-    rclpy.init(args=["--ros-args", "-p", "source:=cloth_state", "-p", "max_area:=0.002"], context=ctx, domain_id=174)
+    # use_sim_time without /clock: the node's clock reads 0, so the test's stamps alone decide (a fold
+    # over by the node's clock would be taken as done at once)
+    rclpy.init(args=["--ros-args", "-p", "source:=cloth_state", "-p", "max_area:=0.002", "-p", "use_sim_time:=true"],
+               context=ctx, domain_id=174)
     try:
         monkeypatch.setattr(rclpy.node.Node, "__init__", _with_context(rclpy.node.Node.__init__, ctx))
         node = KeypointNode()
@@ -266,7 +269,8 @@ def test_keypoint_node_survives_bad_stamps_names_and_durations(monkeypatch):
 
     g = make_shirt(1, max_area=2e-3)
     ctx = rclpy.Context()
-    rclpy.init(args=["--ros-args", "-p", "source:=cloth_state", "-p", "max_area:=0.002"], context=ctx, domain_id=175)
+    rclpy.init(args=["--ros-args", "-p", "source:=cloth_state", "-p", "max_area:=0.002", "-p", "use_sim_time:=true"],
+               context=ctx, domain_id=175)  # clock 0 (no /clock): the test's stamps decide
     try:
         monkeypatch.setattr(rclpy.node.Node, "__init__", _with_context(rclpy.node.Node.__init__, ctx))
         node = KeypointNode()
@@ -303,5 +307,153 @@ def test_keypoint_node_survives_bad_stamps_names_and_durations(monkeypatch):
             rc.seconds_to_ns(1e300)
         assert not math.isnan(rc.seconds_to_ns(4.0))
         node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+class _SimClock:
+    """A KeypointNode in its own context with use_sim_time, its /clock published by the test,
+    its keypoints captured, spun by a single-threaded executor (timers and call_later run)."""
+
+    def __init__(self, monkeypatch, domain_id: int, *params: str):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rosgraph_msgs.msg import Clock
+
+        from clothfold_ros.nodes.keypoint_node import KeypointNode
+
+        monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        self.ctx = rclpy.Context()
+        args = ["--ros-args", "-p", "use_sim_time:=true", *[a for p in params for a in ("-p", p)]]
+        rclpy.init(args=args, context=self.ctx, domain_id=domain_id)
+        monkeypatch.setattr(rclpy.node.Node, "__init__", _with_context(rclpy.node.Node.__init__, self.ctx))
+        self.node = KeypointNode()
+        self.published = []
+        monkeypatch.setattr(self.node.pub, "publish", self.published.append)
+        self.clock_node = rclpy.node.Node("test_clock")
+        self.clock_pub = self.clock_node.create_publisher(Clock, common.CLOCK, common.CLOCK_QOS)
+        self.clock_msg = Clock
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+
+    def stamps(self) -> list[int]:
+        return [rc.time_to_ns(m.header.stamp) for m in self.published]
+
+    def set_clock(self, t_ns: int, timeout: float = 20.0) -> None:
+        """Publish /clock = t_ns until the node's clock reads it (discovery takes a moment)."""
+        deadline = time.monotonic() + timeout
+        while self.node.get_clock().now().nanoseconds != t_ns:
+            assert time.monotonic() < deadline, f"the node's clock did not follow /clock within {timeout:g} s"
+            self.clock_pub.publish(self.clock_msg(clock=rc.header(t_ns).stamp))
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def spin(self, seconds: float, until=lambda: False) -> None:
+        deadline = time.monotonic() + seconds
+        while not until() and time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.clock_node.destroy_node()
+        rclpy.shutdown(context=self.ctx)
+
+
+def _planned(spec, t0_ns: int) -> FoldSpecMsg:
+    return rc.fold_spec_to_msg(rc.PlannedFold(spec, 0.5, 30.0, 4.0, 0.2, 0, t0_ns))  # ends t0 + 4.2 s
+
+
+def test_a_node_started_after_a_fold_publishes_the_final_state(monkeypatch):
+    """A keypoint_node (re)started after a fold receives the fold's latched /fold/active but never its
+    volatile /fold/result, and the sim's latched final /cloth/state is the last state sent. A fold over by
+    the node's clock is taken at once as done with an unknown outcome; a fold still running holds its
+    states until its result."""
+    g = make_shirt(1, max_area=2e-3)
+    sim = _SimClock(monkeypatch, 176, "source:=cloth_state", "max_area:=0.002")
+    try:
+        node = sim.node
+        spec = fold_spec("left_sleeve", g.keypoints())
+        state = lambda t: rc.cloth_state_to_msg(g.vertices, g.triangles, g.keypoint_ids, T, t)  # noqa: E731
+        sim.set_clock(20 * S)
+        node.on_active(_planned(spec, 10 * S))  # ended at 14.2 s, before the node's 20 s
+        assert node.active is None and node.failed.name == spec.name
+        node.on_state(state(14_200_000_000))  # the fold's final state
+        assert sim.stamps() == [14_200_000_000]
+        # a fold really in progress: its states are held until its result
+        node.on_active(_planned(spec, 18 * S))  # ends at 22.2 s
+        node.on_state(state(19 * S))
+        sim.spin(1.5)
+        assert node.active is not None and sim.stamps() == [14_200_000_000]
+        node.on_result(FoldResult(header=rc.header(22 * S), fold_name=spec.name, success=True, loss=0.005))
+        sim.spin(5.0, until=lambda: len(sim.published) == 2)
+        assert sim.stamps() == [14_200_000_000, 19 * S] and node.fold_names() == [spec.name]
+    finally:
+        sim.close()
+
+
+def test_a_fold_without_result_is_given_up_by_the_clock(monkeypatch):
+    """Before the first /clock the node cannot tell whether a fold is over and holds its states; once
+    its clock passes the fold's end + STALE_AFTER the fold is given up and the held state handled,
+    though no further cloth message comes (the sim publishes states only while the cloth moves)."""
+    from clothfold_ros.nodes.keypoint_node import STALE_AFTER
+
+    g = make_shirt(1, max_area=2e-3)
+    sim = _SimClock(monkeypatch, 177, "source:=cloth_state", "max_area:=0.002")
+    try:
+        node = sim.node
+        spec = fold_spec("left_sleeve", g.keypoints())
+        assert node.get_clock().now().nanoseconds == 0
+        node.on_active(_planned(spec, 10 * S))  # clock 0: not decided
+        node.on_state(rc.cloth_state_to_msg(g.vertices, g.triangles, g.keypoint_ids, T, 14_200_000_000))
+        assert node.active is not None and sim.published == []
+        sim.set_clock(14 * S + int(STALE_AFTER * S))  # before the limit (14.2 s + STALE_AFTER)
+        sim.spin(1.5)
+        assert node.active is not None and sim.published == []
+        sim.set_clock(15 * S + int(STALE_AFTER * S))  # past it
+        sim.spin(5.0, until=lambda: len(sim.published) == 1)
+        assert sim.stamps() == [14_200_000_000]
+        assert node.active is None and node.failed.name == spec.name
+    finally:
+        sim.close()
+
+
+def test_points_qos_parameter(monkeypatch):
+    """points_qos picks the cloud subscription's QoS: latched (the sim's camera) or sensor_data (best
+    effort, volatile: what camera drivers publish, which a latched subscription never receives)."""
+    import rclpy
+    from rclpy.exceptions import InvalidParameterValueException
+    from rclpy.qos import (DurabilityPolicy, QoSCompatibility, ReliabilityPolicy, qos_check_compatible,
+                           qos_profile_sensor_data)
+
+    from clothfold_ros.nodes.keypoint_node import KeypointNode
+
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    for value, reliability, durability in (
+            (None, ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL),
+            ("sensor_data", ReliabilityPolicy.BEST_EFFORT, DurabilityPolicy.VOLATILE),
+            ("latched", ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL)):
+        ctx = rclpy.Context()
+        args = ["--ros-args", "-p", "source:=points", "-p", "points_topic:=/camera/points"]
+        rclpy.init(args=args + (["-p", f"points_qos:={value}"] if value else []), context=ctx, domain_id=178)
+        try:
+            monkeypatch.setattr(rclpy.node.Node, "__init__", _with_context(rclpy.node.Node.__init__, ctx))
+            node = KeypointNode()
+            (sub,) = [s for s in node.subscriptions if s.topic_name == "/camera/points"]
+            assert (sub.qos_profile.reliability, sub.qos_profile.durability) == (reliability, durability), value
+            camera, sim = (qos_check_compatible(pub, sub.qos_profile)[0] for pub in (qos_profile_sensor_data,
+                                                                                      common.LATCHED))
+            assert (camera != QoSCompatibility.ERROR) == (value == "sensor_data") and sim != QoSCompatibility.ERROR
+            node.destroy_node()
+        finally:
+            rclpy.shutdown(context=ctx)
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-p", "source:=points", "-p", "points_qos:=best_effort"], context=ctx,
+               domain_id=178)
+    try:
+        monkeypatch.setattr(rclpy.node.Node, "__init__", _with_context(rclpy.node.Node.__init__, ctx))
+        with pytest.raises(InvalidParameterValueException, match="points_qos must be one of latched, sensor_data"):
+            KeypointNode()
     finally:
         rclpy.shutdown(context=ctx)

@@ -12,7 +12,9 @@ into the table frame by the fixed `table_from_camera` transform and fitted with 
 model (`perception.estimator`, with the folds done; each stage starts from the previous
 estimate). Publishes /keypoints (vertex ids -1) and the fitted outline as a
 visualization_msgs/Marker LINE_LIST on /keypoints/outline. Clouds arriving while a fold
-is executing are skipped (the cloth moves, the grippers are in view). A bad cloud (empty,
+is executing are skipped (the cloth moves, the grippers are in view). `points_qos` is the
+subscription's QoS: "latched" for the sim's camera, "sensor_data" (best effort, volatile) for a
+camera driver's sensor-data publisher, which a latched subscription never receives. A bad cloud (empty,
 NaN, no cloth, two blobs, no convergence) is logged with the reason and skipped; a fit
 whose residual exceeds `max_residual` is logged as such and its outline published in
 red (namespace "rejected"), not its keypoints. The last good keypoints stay published.
@@ -20,7 +22,16 @@ red (namespace "rejected"), not its keypoints. The last good keypoints stay publ
 source = "cloth_state": subscribes /cloth/state and publishes the visible keypoints of
 the current mesh (material keypoint vertices while flat; vertex id -1 for keypoints that
 are not a vertex); the flat mesh must be the sim's (parameters shape, max_area).
+
 source = "model": the flat shirt's keypoints once a second, for backends without a cloth.
+
+Sources points and cloth_state: a cloth message stamped while a fold executes is held and
+handled after the fold's result. A fold whose result this node cannot see (it started after
+the fold: /fold/active is latched, /fold/result is not) is taken as over with an unknown
+outcome when its /fold/active arrives after its end by the node's clock, or STALE_AFTER s
+after its end (a once-a-second check by the clock, or a later cloth message's stamp); the
+held message is then handled. The node decides nothing by its clock while it reads 0
+(use_sim_time before the first /clock).
 """
 from __future__ import annotations
 
@@ -31,6 +42,7 @@ from clothfold_msgs.msg import ClothState, FoldResult, FoldSpec as FoldSpecMsg, 
 from geometry_msgs.msg import Point
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import ColorRGBA
 from std_srvs.srv import Trigger
@@ -43,6 +55,7 @@ from .params import Param
 
 OUTLINE_TOPIC = "/keypoints/outline"
 STALE_AFTER = 30.0  # s past a fold's end without its result: the fold is no longer taken as executing
+POINTS_QOS = {"latched": common.LATCHED, "sensor_data": qos_profile_sensor_data}
 
 PARAMS = [
     Param("source", "cloth_state", "where keypoints come from: a point cloud, the cloth state topic or the flat "
@@ -52,6 +65,9 @@ PARAMS = [
           range=(1e-5, 1e-2), read_only=True),
     Param("model_period", 1.0, "republish period of the model keypoints (s)", range=(0.05, 60.0), read_only=True),
     Param("points_topic", "/cloth/points", "sensor_msgs/PointCloud2 topic (source = points)", read_only=True),
+    Param("points_qos", "latched", "QoS of the points_topic subscription: latched (reliable, transient local: the "
+          "sim's /cloth/points) or sensor_data (best effort, volatile: a camera driver's; receives from any "
+          "publisher)", choices=tuple(POINTS_QOS), read_only=True),
     Param("points_frame", "table", "frame_id the clouds must have; table_from_camera maps it to the table frame",
           read_only=True),
     Param("table_from_camera", [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
@@ -118,6 +134,7 @@ class KeypointNode(Node):
             self.create_subscription(FoldSpecMsg, common.FOLD_ACTIVE, self.on_active, common.LATCHED)
             self.create_subscription(FoldResult, common.FOLD_RESULT, self.on_result, common.RESULTS)
             self.create_service(Trigger, "~/reset", self.on_reset)
+            self.create_timer(1.0, self.check_stale, clock=Clock(clock_type=ClockType.STEADY_TIME))
         if source == "points":
             from ..perception.estimator import EstimatorConfig
 
@@ -135,8 +152,9 @@ class KeypointNode(Node):
             self.translation = np.asarray(t[:3], float)
             self.outline_pub = self.create_publisher(Marker, OUTLINE_TOPIC, common.LATCHED)
             topic = params.value(self, "points_topic")
-            self.create_subscription(PointCloud2, topic, self.on_points, common.LATCHED)
-            self.get_logger().info(f"publishing keypoints estimated from the point cloud on {topic}")
+            qos = params.value(self, "points_qos")
+            self.create_subscription(PointCloud2, topic, self.on_points, POINTS_QOS[qos])
+            self.get_logger().info(f"publishing keypoints estimated from the point cloud on {topic} ({qos} QoS)")
         elif source == "cloth_state":
             self.create_subscription(ClothState, common.CLOTH_STATE, self.on_state, common.LATCHED)
             self.get_logger().info(f"publishing keypoints of the cloth on {common.CLOTH_STATE}")
@@ -155,6 +173,11 @@ class KeypointNode(Node):
             self.active = rc.fold_spec_from_msg(msg)
         except ValueError as err:
             self.get_logger().error(f"bad /fold/active ignored: {err}")
+            return
+        now, end = self.get_clock().now().nanoseconds, self.end_ns(self.active)
+        if 0 < now and end < now:  # a latched announcement of a fold over before this node started
+            self.give_up(f"it ended at {end * 1e-9:.3f} s, before its /fold/active reached this node (clock "
+                         f"{now * 1e-9:.3f} s): its result was missed")
 
     def on_result(self, msg: FoldResult) -> None:
         active, self.active = self.active, None
@@ -189,15 +212,37 @@ class KeypointNode(Node):
         self.get_logger().info(resp.message)
         return resp
 
+    @staticmethod
+    def end_ns(a) -> int:
+        """When the fold a (PlannedFold) ends: its motion and settling done."""
+        return a.stamp_ns + rc.seconds_to_ns(a.duration + a.settle_time)
+
+    def give_up(self, why: str) -> None:
+        """Take the active fold as over, its outcome unknown (its result was missed), and handle the
+        cloth message held for it (after the current callback; dropped if a newer one is handled)."""
+        a, self.active, self.failed = self.active, None, self.active.spec
+        self.get_logger().warn(f"no result seen for fold {a.spec.name} ({why}): its outcome is taken as unknown")
+        skipped, self.skipped = self.skipped, None
+        if skipped is not None:
+            self.call_later((self.replay, skipped))
+
+    def check_stale(self) -> None:
+        """Once a second: give up an active fold STALE_AFTER s past its end by the node's clock, so
+        a held cloth message is handled though no later message comes (none while the cloth rests)."""
+        now = self.get_clock().now().nanoseconds
+        if self.active is not None and 0 < now and now > self.end_ns(self.active) + rc.seconds_to_ns(STALE_AFTER):
+            self.give_up(f"the clock reads {now * 1e-9:.3f} s, {STALE_AFTER:g} s past its end at "
+                         f"{self.end_ns(self.active) * 1e-9:.3f} s")
+
     def folding(self, stamp_ns: int) -> bool:
         """Whether a fold is executing at stamp_ns. A latched /fold/active of a fold whose
         result this node never saw (it started later) is given up STALE_AFTER s after its end."""
         a = self.active
         if a is None:
             return False
-        if stamp_ns > a.stamp_ns + rc.seconds_to_ns(a.duration + a.settle_time + STALE_AFTER):
-            self.get_logger().warn(f"no result seen for fold {a.spec.name}: its outcome is taken as unknown")
-            self.active, self.failed = None, a.spec
+        if stamp_ns > self.end_ns(a) + rc.seconds_to_ns(STALE_AFTER):
+            self.give_up(f"a cloth message stamped {stamp_ns * 1e-9:.3f} s, {STALE_AFTER:g} s past its end at "
+                         f"{self.end_ns(a) * 1e-9:.3f} s")
             return False
         return True
 
