@@ -387,3 +387,15 @@ def test_table_selector_leaves_partial_tables_out_and_names_them(tmp_path: Path)
     (tmp_path / "shape1" / "table.csv").unlink()  # only partial tables: they are used
     s = TableSelector(tmp_path).select(fold_name="left_side", stage=2, **args)
     assert s.scenario == "both_sides" and "(incomplete)" in s.note
+
+
+def test_a_non_finite_keypoint_a_feature_is_measured_from_is_named() -> None:
+    """A side fold measures both sleeves: a NaN shoulder of either side makes sleeve features NaN,
+    which would make every table distance NaN (IndexError in choose); a sleeve fold does not use
+    the other sleeve's keypoints, so a NaN there is harmless."""
+    kp = flat_keypoints(1, "cotton")
+    kp["shoulder_right"] = np.array([np.nan, 0.1, 0.0])
+    args = dict(keypoints=kp, material_name="cotton", friction=0.5, duration=4.0)
+    with pytest.raises(ValueError, match=r"feature sleeve_length is nan: non-finite keypoint\(s\) shoulder_right"):
+        features(fold_name="left_side", **args)
+    assert all(math.isfinite(v) for v in features(fold_name="left_sleeve", **args).values())

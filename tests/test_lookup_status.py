@@ -125,3 +125,40 @@ def test_status_refuses_a_broken_provenance_naming_the_file(tmp_path, capsys, pr
         status.table_status(d)
     assert main(["tables", "--tables", str(tmp_path / "tables")]) == 2
     assert f"{d / sweep_dir.PROVENANCE}" in capsys.readouterr().err
+
+
+def test_status_counts_only_the_sweeps_fan_points(tmp_path):
+    """Rows of points outside the provenance's fan_points (an earlier sweep of other points in
+    the same directory) do not make a partial table complete."""
+    d = tmp_path / "T1"
+    _write_runs(d, [_row(4, 3.0), _row(5, None), _row(6, 2.0), _row(7, 1.0)])
+    (d / sweep_dir.PROVENANCE).write_text(json.dumps({"fan_points": [4, 5, 9]}))
+    s = status.table_status(d)
+    assert (s.runs, s.wanted, s.failed) == (2, 3, 1) and not s.complete and s.state == "partial"
+
+
+def test_an_empty_lock_is_being_written_and_held_until_it_is_old(tmp_path):
+    """Older code created the lock file, then wrote its pid: an empty lock is another sweep
+    taking it, not a stale lock to remove (both would hold it); an old empty one is stale."""
+    lock = tmp_path / sweep_dir.LOCK
+    lock.write_text("")
+    assert sweep_dir.lock_owner(tmp_path) == 0 and not sweep_dir.is_finished(tmp_path)
+    with pytest.raises(RuntimeError, match="another sweep"):
+        with sweep_dir.Lock(tmp_path):
+            pass
+    assert lock.exists() and lock.read_text() == ""
+    old = lock.stat().st_mtime - 2 * sweep_dir.LOCK_GRACE_S
+    os.utime(lock, (old, old))
+    assert sweep_dir.lock_owner(tmp_path) is None
+    with sweep_dir.Lock(tmp_path):
+        assert lock.read_text() == str(os.getpid())
+    assert not lock.exists() and os.listdir(tmp_path) == []  # no temporary file left
+
+
+def test_leaving_the_lock_keeps_another_sweeps_lock(tmp_path):
+    lock = tmp_path / sweep_dir.LOCK
+    with sweep_dir.Lock(tmp_path):
+        lock.unlink()  # taken over meanwhile (e.g. as stale) by another sweep:
+        lock.write_text(str(os.getppid()))
+    assert lock.read_text() == str(os.getppid())
+    assert sweep_dir.lock_owner(tmp_path) == os.getppid()

@@ -258,3 +258,106 @@ def test_a_pack_that_fails_keeps_the_old_archive_and_the_per_run_files(tmp_path:
     assert not list(tmp_path.glob(".*")), "temporary archive left behind"
     _, _, finals = read_packed(tmp_path, [1, 2])
     assert finals[1][0, 0] == 1.0 and finals[2][0, 0] == 2.0
+
+
+def _fake_row(point: int) -> dict:
+    return {"point": point, "height_ratio": 1.0, "tilt_deg": 0.0, "loss_m": 0.01, "success": True, "reason": "",
+            "wall_time_s": 0.0, "cpu_time_s": 0.0, "newton_iterations": 1, "steps": 1, "solver_commit": "test"}
+
+
+def test_a_pack_keeps_the_per_run_files_of_points_it_did_not_pack(tmp_path: Path) -> None:
+    """finish reads the logged points, then packs: a run another sweep logged in between keeps
+    its final state."""
+    from clothfold_ros.lookup.sweep_dir import FINALS, append_run, pack_finals, read_packed
+
+    append_run(tmp_path, _fake_row(1), np.full((3, 3), 1.0, dtype=np.float32))
+    packed = [r["point"] for r in read_runs(tmp_path)]
+    append_run(tmp_path, _fake_row(2), np.full((3, 3), 2.0, dtype=np.float32))  # logged after the read
+    pack_finals(tmp_path, np.array([[0, 1, 2]]), np.zeros((3, 3)), np.zeros((3, 3)), packed)
+    assert [f.name for f in (tmp_path / FINALS).iterdir()] == ["p002.npy"]
+    _, _, finals = read_packed(tmp_path, [1, 2])
+    assert finals[1][0, 0] == 1.0 and finals[2][0, 0] == 2.0
+    pack_finals(tmp_path, np.array([[0, 1, 2]]), np.zeros((3, 3)), np.zeros((3, 3)), [1, 2])
+    assert not (tmp_path / FINALS).exists()  # all packed: the directory goes too
+
+
+def test_the_sweep_command_tabulates_and_packs_under_its_lock(tmp_path: Path, monkeypatch) -> None:
+    from clothfold_ros.cli import main
+    from clothfold_ros.lookup import sweep
+    from clothfold_ros.lookup.sweep_dir import lock_owner
+
+    owners: list[int | None] = []
+    real = sweep.finish
+
+    def finish(d, command, points):
+        owners.append(lock_owner(d))
+        return real(d, command, points)
+
+    monkeypatch.setattr(sweep, "_local", lambda jobs, n: ((_fake_row(j.point), None) for j in jobs))
+    monkeypatch.setattr(sweep, "finish", finish)
+    assert main(["sweep", "T1", "--out", str(tmp_path), "--max-area", str(TINY["max_area"]), "--points", "96,133",
+                 "--workers", "1", "--quiet"]) == 0
+    assert owners == [os.getpid()] and lock_owner(tmp_path / "T1") is None
+    assert json.loads((tmp_path / "T1" / "provenance.json").read_text())["complete"]
+
+
+@pytest.mark.parametrize("bad", [dict(settle_time=float("inf")), dict(max_newton_iterations=0),
+                                 dict(max_newton_iterations=2.5), dict(dt=float("nan")), dict(newton_tol=-1.0)])
+def test_bad_settings_are_refused_before_a_directory_is_claimed(tmp_path: Path, bad: dict) -> None:
+    """settings.json pins a directory to its settings: settings the simulator refuses must not
+    get there (the sweep would fail, and a rerun with good settings be refused)."""
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        SweepSettings("T1", **TINY, **bad)
+
+
+def test_provenance_names_the_code_the_process_runs_from_any_directory(tmp_path: Path, monkeypatch) -> None:
+    from clothfold_ros.lookup.sweep_dir import append_run
+    from clothfold_ros.lookup.sweep import solver_commit
+
+    d = tmp_path / "T1"
+    run_sweep(SweepSettings("T1", **TINY), d, [], workers=1, progress=False)
+    append_run(d, _fake_row(96), None)
+    monkeypatch.chdir(tmp_path)  # no git checkout here
+    write_table(d, "test", [96])
+    commit = json.loads((d / "provenance.json").read_text())["git_commit"]
+    assert commit == solver_commit() and re.fullmatch(r"[0-9a-f]{40}(-dirty)?", commit), commit
+
+
+def test_repair_truncates_the_partial_line_in_place(tmp_path: Path, monkeypatch) -> None:
+    from clothfold_ros.lookup.sweep_dir import RUNS, repair_log
+
+    lines = "".join(json.dumps(_fake_row(p)) + "\n" for p in (1, 2))
+    (tmp_path / RUNS).write_text(lines + '{"point": 3, "hei')
+
+    def killed_mid_write(self, data):  # what a rewrite killed between truncating and writing leaves
+        open(self, "wb").close()
+        raise OSError("killed")
+
+    monkeypatch.setattr(Path, "write_bytes", killed_mid_write)
+    repair_log(tmp_path)
+    assert (tmp_path / RUNS).read_text() == lines
+    repair_log(tmp_path)  # a complete log is left as it is
+    assert (tmp_path / RUNS).read_text() == lines
+
+
+def _slow_job(job) -> tuple[dict, None]:
+    """A fake run that leaves a marker file when it starts (directory: $CLOTHFOLD_TEST_MARKERS)."""
+    (Path(os.environ["CLOTHFOLD_TEST_MARKERS"]) / f"p{job}").touch()
+    time.sleep(0.3)
+    return _fake_row(job), None
+
+
+def test_a_pool_left_early_drops_its_queued_runs(monkeypatch, tmp_path: Path) -> None:
+    """Ctrl-C (or any error) in a multi-worker sweep: the queued runs are cancelled, not run and
+    discarded (a `with ProcessPoolExecutor` waited for all of them). Of 10 runs on 2 workers, those
+    running or handed to a worker when the sweep stops may still start; the rest never do."""
+    from clothfold_ros.lookup import sweep
+
+    monkeypatch.setenv("CLOTHFOLD_TEST_MARKERS", str(tmp_path))
+    monkeypatch.setattr(sweep, "run_job", _slow_job)
+    it = sweep._local(list(range(10)), 2)
+    next(it)
+    it.close()
+    time.sleep(2.0)  # what 10 runs of 0.3 s take on 2 workers, with margin: all would have started
+    started = len(list(tmp_path.iterdir()))
+    assert 1 <= started <= 7, started  # the first 2, 2 running and at most 3 in the executor's call queue

@@ -41,7 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..lookup.scenario import scenario
     from ..lookup.fan_selection import fan_points
-    from ..lookup.sweep import SweepSettings, finish, run_sweep, table_is_current
+    from ..lookup.sweep import SweepSettings, finish, run_sweep
 
     try:
         sc = scenario(args.scenario)
@@ -77,18 +77,17 @@ def run(args: argparse.Namespace) -> int:
     def tabulate(_row: dict) -> None:  # after every run: a sweep ended mid-way leaves the table of its runs
         write_table(d, command, points)
 
-    try:
+    try:  # finished (table, packed finals) under the sweep's lock; kept as it is when nothing is new
         rows = run_sweep(settings, d, points, workers=args.workers, ray_address=args.ray, previous_dir=prev,
-                         progress=not args.quiet, on_row=tabulate)
+                         progress=not args.quiet, on_row=tabulate, command=command)
     except (ValueError, FileNotFoundError, RuntimeError) as err:
         print(f"clothfold sweep: {err}", file=sys.stderr)
         return 2
-    if not rows and table_is_current(d):  # nothing new: keep the table and its provenance as they are
+    if not rows:
         print(f"{sc.name}: no run left to do; {d / 'table.csv'} is up to date")
         return 0
-    table = finish(d, command, points)
     failed = sum(not r["success"] for r in rows)
-    print(f"{sc.name}: {len(rows)} runs this call ({failed} failed) -> {table}")
+    print(f"{sc.name}: {len(rows)} runs this call ({failed} failed) -> {d / 'table.csv'}")
     return 0
 
 

@@ -155,7 +155,8 @@ def features(*, fold_name: str, keypoints: Mapping[str, np.ndarray], material_na
 
     Sleeve measures are the folded sleeve's side for sleeve folds, else the mean of both
     sides. `grip` (m) overrides the grip-to-fold-line distance (when the spec came from
-    other keypoints); `stage` defaults to STAGE_OF_FOLD[fold_name].
+    other keypoints); `stage` defaults to STAGE_OF_FOLD[fold_name]. A feature that is not
+    finite (a non-finite keypoint it is measured from) is a ValueError naming both.
     """
     kind = fold_type(fold_name)
     missing = [k for k in KEYPOINT_NAMES if k not in keypoints]
@@ -170,7 +171,7 @@ def features(*, fold_name: str, keypoints: Mapping[str, np.ndarray], material_na
     ml = np.array([_sleeve_measures(keypoints, s) for s in sides])
     if grip is None:
         grip = grip_distance(spec_for(fold_name, keypoints)[0])
-    return {
+    out = {
         "sleeve_length": float(ml[:, 0].mean()),
         "sleeve_angle": float(ml[:, 1].mean()),
         "grip_distance": float(grip),
@@ -181,6 +182,14 @@ def features(*, fold_name: str, keypoints: Mapping[str, np.ndarray], material_na
         "stage": float(STAGE_OF_FOLD[fold_name] if stage is None else stage),
         "fold_type": FOLD_TYPE_CODE[kind],
     }
+    sleeve = [f"{p}_{s}" for s in sides for p in ("shoulder", "armpit", "sleeve_top", "sleeve_bottom")]
+    for k, v in out.items():
+        if not math.isfinite(v):
+            source = sleeve if k.startswith("sleeve_") else KEYPOINT_NAMES  # grip: the fold spec's keypoints
+            bad = [n for n in source if not np.all(np.isfinite(np.asarray(keypoints[n], dtype=float)))]
+            raise ValueError(f"feature {k} is {v}: " + (f"non-finite keypoint(s) {', '.join(bad)}, which it is "
+                             "measured from" if bad else f"measured from keypoints {', '.join(source)}"))
+    return out
 
 
 def flat_keypoints(shape: int, material_name: str) -> dict[str, np.ndarray]:

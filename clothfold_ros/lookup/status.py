@@ -27,9 +27,9 @@ class TableStatus:
     """One scenario's sweep directory as it stands."""
 
     scenario: str
-    runs: int  # fan points recorded in runs.jsonl
+    runs: int  # wanted fan points recorded in runs.jsonl
     wanted: int  # fan points the sweep covers (its provenance, else the whole fan)
-    failed: int
+    failed: int  # of those
     best: dict | None  # the successful row of least loss
     cpu_s: list[float]  # each run's CPU seconds (its wall time where a row predates cpu_time_s)
     sweeping: bool  # a live sweep holds the directory's lock
@@ -64,10 +64,11 @@ def table_status(d: str | Path, name: str | None = None) -> TableStatus:
     d = Path(d)
     name = name or d.name
     rows = read_runs(d / RUNS) if (d / RUNS).exists() else []
-    wanted = FAN_SIZE
+    wanted = set(range(FAN_SIZE))
     if (d / PROVENANCE).exists():
-        wanted = len(_fan_points(d / PROVENANCE)) or FAN_SIZE
-    return TableStatus(name, len(rows), wanted, sum(not r["success"] for r in rows), best_row(rows),
+        wanted = set(_fan_points(d / PROVENANCE)) or wanted
+    done = [r for r in rows if int(r["point"]) in wanted]  # a run outside the sweep's points completes nothing
+    return TableStatus(name, len(done), len(wanted), sum(not r["success"] for r in done), best_row(rows),
                        [_run_cpu_s(r) for r in rows], lock_owner(d) is not None)
 
 

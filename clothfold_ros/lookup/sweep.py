@@ -8,7 +8,6 @@ Runs go to a local process pool (default: one worker per core) or to Ray.
 """
 from __future__ import annotations
 
-import functools
 import os
 import sys
 import time
@@ -29,10 +28,10 @@ from . import sweep_dir as layout
 from .fan_selection import coverage_order
 from .scenario import features, grip_distance, scenario, spec_for
 from .sweep_dir import SweepSettings, load_final, read_start
-from .table import git_commit, write_table
+from .table import solver_commit, write_table
 
 __all__ = ["Job", "Progress", "SweepSettings", "finish", "load_final", "prepare_start", "run_job",
-           "run_sweep", "stage_target"]
+           "run_sweep", "solver_commit", "stage_target"]
 
 
 @dataclass(frozen=True)
@@ -52,13 +51,6 @@ def _scene(s: SweepSettings) -> Scene:
     sc = scenario(s.scenario)
     return build_scene(SceneSettings(shape=sc.shape, max_area=s.max_area, material=sc.material, friction=sc.friction,
                                      dt=s.dt, newton_tol=s.newton_tol, max_newton_iterations=s.max_newton_iterations))
-
-
-@functools.lru_cache(maxsize=1)
-def solver_commit() -> str:
-    """Commit of the code this process simulates with (read once: a sweep that runs for hours
-    keeps the code it started with, whatever the checkout does meanwhile); 'unknown' outside git."""
-    return git_commit(Path(__file__).resolve().parents[2])
 
 
 def run_job(job: Job) -> tuple[dict, np.ndarray | None]:
@@ -189,9 +181,17 @@ def _local(jobs: list[Job], workers: int) -> Iterator[tuple[dict, np.ndarray | N
         return
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        for fut in as_completed([pool.submit(run_job, j) for j in jobs]):
+    pool = ProcessPoolExecutor(max_workers=workers)
+    futures = [pool.submit(run_job, j) for j in jobs]
+    try:
+        for fut in as_completed(futures):
             yield fut.result()
+    except BaseException:  # Ctrl-C, an error, or the sweep left early: queued runs are dropped, not awaited
+        for fut in futures:  # cancelled here: shutdown(cancel_futures=True) without waiting cancelled none
+            fut.cancel()     # (Python 3.11); runs already handed to a worker still start
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
 
 
 def _ray(jobs: list[Job], address: str, workers: int) -> Iterator[tuple[dict, np.ndarray | None]]:
@@ -238,17 +238,24 @@ def _hms(s: float) -> str:
 
 def run_sweep(settings: SweepSettings, sweep_dir: str | Path, points: Iterable[int], *, workers: int | None = None,
               ray_address: str | None = None, previous_dir: str | Path | None = None, progress: bool = True,
-              on_row: Callable[[dict], None] | None = None) -> list[dict]:
+              on_row: Callable[[dict], None] | None = None, command: str | None = None) -> list[dict]:
     """Run (or resume) the sweep of `settings.scenario` over fan indices `points` into
     `sweep_dir`; returns the rows finished in this call. ray_address: None = local pool
     with `workers` processes (default: the usable cores), 'local' = a private single-node
     Ray started here with `workers` CPUs (Ray's local mode is gone since Ray 2.4), else a
     Ray cluster address ('auto' = the running cluster). previous_dir: the sweep directory of the scenario's `after`.
+    command: also `finish` (table recording `command`, packed finals) before releasing the lock,
+    unless this call ran nothing and the table is current.
     """
     d = Path(sweep_dir)
     d.mkdir(parents=True, exist_ok=True)
-    with layout.Lock(d):
-        return _run_locked(settings, d, points, workers, ray_address, previous_dir, progress, on_row)
+    points = [int(p) for p in points]
+    solver_commit()  # read now: the provenance names the code this process started with
+    with layout.Lock(d):  # the table and the pack too: a sweep started meanwhile would lose finals to the pack
+        rows = _run_locked(settings, d, points, workers, ray_address, previous_dir, progress, on_row)
+        if command is not None and (rows or not table_is_current(d)):
+            finish(d, command, points)
+        return rows
 
 
 def _run_locked(settings: SweepSettings, d: Path, points: Iterable[int], workers: int | None,
@@ -267,10 +274,13 @@ def _run_locked(settings: SweepSettings, d: Path, points: Iterable[int], workers
     n_workers = workers or len(os.sched_getaffinity(0))
     it = _ray(jobs, ray_address, n_workers) if ray_address else _local(jobs, n_workers)
     out = []
-    for row, final in it:
-        layout.append_run(d, row, final)
-        out.append(row)
-        bar.update(bool(row["success"]))
-        if on_row:
-            on_row(row)
+    try:
+        for row, final in it:
+            layout.append_run(d, row, final)
+            out.append(row)
+            bar.update(bool(row["success"]))
+            if on_row:
+                on_row(row)
+    finally:
+        it.close()  # left early (Ctrl-C in on_row, a full disk): the pool drops its queued runs now
     return out

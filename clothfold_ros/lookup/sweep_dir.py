@@ -10,19 +10,21 @@ A sweep of one scenario and the lookup table made from it share one directory
 | `start.npz` | sweep, sequence stages only | start `vertices` and `target` (the previous stage's target), m |
 | `runs.jsonl` | sweep, one line per finished run | the resume state: row of each fan point, failures included, with the commit it simulated with (`solver_commit`) |
 | `finals/pNNN.npy` | sweep, before its runs.jsonl line | final vertices of fan point NNN, float32, m |
-| `finals.npz` | `pack_finals` | `triangles`, `start`, `target` and every `pNNN` (replaces finals/) |
+| `finals.npz` | `pack_finals` | `triangles`, `start`, `target` and every `pNNN` (replaces the packed points' finals/ files) |
 | `table.csv`, `provenance.json` | `table.write_table` | the tidy table and its provenance |
 | `landscape.png`, `best_worst.png` | `plot` | figures (`../landscapes.png`: `plot --overview`, all tables) |
-| `.lock` | sweep, while running | owner pid |
+| `.lock` | sweep, while running (and tabulating) | owner pid |
 
 Everything else (the sweep engine, the table format, plots) reads and writes these
 files through this module. Pure: numpy and the standard library only.
 """
 from __future__ import annotations
 
+import fcntl
 import json
 import math
 import os
+import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -44,6 +46,7 @@ LANDSCAPE_PNG = "landscape.png"
 BEST_WORST_PNG = "best_worst.png"
 OVERVIEW_PNG = "landscapes.png"  # in the tables root: all scenarios side by side
 LOCK = ".lock"
+LOCK_GRACE_S = 10.0  # a lock file holding no pid is being written while younger than this, else stale
 STUDY_END_ANGLE_DEG = 170.0  # the end angle of the study's simulations (docs/method.md)
 LEGACY_END_ANGLE_DEG = 175.0  # sweeps whose settings.json predates the field were made with this
 
@@ -61,14 +64,17 @@ class SweepSettings:
     end_angle_deg: float = STUDY_END_ANGLE_DEG  # fold end pose: start pose rotated this much about the line
 
     def __post_init__(self) -> None:
-        scenario(self.scenario)
+        """Checks everything before a sweep writes anything (settings.json pins a directory)."""
+        from ..sim.scene import SceneSettings  # here: the simulator's import is heavy for readers of tables
+
+        sc = scenario(self.scenario)
         if not (math.isfinite(self.end_angle_deg) and 0.0 < self.end_angle_deg <= 180.0):
             raise ValueError(f"end_angle_deg must be in (0, 180], got {self.end_angle_deg}")
-        for k in ("max_area", "dt", "newton_tol"):
-            if not (math.isfinite(getattr(self, k)) and getattr(self, k) > 0):
-                raise ValueError(f"{k} must be > 0, got {getattr(self, k)}")
-        if not self.settle_time >= 0:
-            raise ValueError(f"settle_time must be >= 0 s, got {self.settle_time}")
+        if not (math.isfinite(self.settle_time) and self.settle_time >= 0):
+            raise ValueError(f"settle_time must be finite and >= 0 s, got {self.settle_time}")
+        # the scene's and the solver's (SimConfig) own checks: max_area, dt, newton_tol, iteration cap
+        SceneSettings(shape=sc.shape, max_area=self.max_area, material=sc.material, friction=sc.friction, dt=self.dt,
+                      newton_tol=self.newton_tol, max_newton_iterations=self.max_newton_iterations)
 
 
 def final_key(point: int) -> str:
@@ -185,13 +191,14 @@ def pending(d: str | Path, points) -> list[int]:
 
 
 def repair_log(d: str | Path) -> None:
-    """Drop a partial last line (a kill during the append) so new lines start clean."""
+    """Drop a partial last line (a kill during the append) so new lines start clean; truncated
+    in place, so a kill during the repair never loses the complete lines."""
     path = Path(d) / RUNS
     if not path.exists() or path.stat().st_size == 0:
         return
     data = path.read_bytes()
     if not data.endswith(b"\n"):
-        path.write_bytes(data[: data.rfind(b"\n") + 1])
+        os.truncate(path, data.rfind(b"\n") + 1)
 
 
 def append_run(d: str | Path, row: dict, final: np.ndarray | None) -> None:
@@ -225,8 +232,9 @@ def load_final(d: str | Path, point: int) -> np.ndarray:
 
 def pack_finals(d: str | Path, triangles: np.ndarray, start: np.ndarray, target: np.ndarray,
                 points) -> Path:
-    """Write finals.npz (triangles, start, target and the final state of every point that
-    has one) and remove the per-run files."""
+    """Write finals.npz (triangles, start, target and the final state of every point of
+    `points` that has one) and remove those points' per-run files (only those: a run logged
+    after `points` was read keeps its own)."""
     d = Path(d)
     arrays = {"triangles": np.asarray(triangles).astype(np.int32), "start": np.asarray(start, dtype=np.float32),
               "target": np.asarray(target, dtype=np.float32)}
@@ -238,9 +246,9 @@ def pack_finals(d: str | Path, triangles: np.ndarray, start: np.ndarray, target:
     # aside and renamed: the old archive holds points whose per-run files are gone
     with replacing(d / FINALS_NPZ, "." + FINALS_NPZ) as tmp:  # keeps .npz: np.savez adds it otherwise
         np.savez_compressed(tmp, **arrays)
-    if (d / FINALS).exists():
-        for f in (d / FINALS).glob("*.npy"):
-            f.unlink()
+    for p in points:
+        (d / FINALS / f"{final_key(p)}.npy").unlink(missing_ok=True)
+    if (d / FINALS).exists() and not any((d / FINALS).iterdir()):
         (d / FINALS).rmdir()
     return d / FINALS_NPZ
 
@@ -264,14 +272,21 @@ def table_dirs(root: str | Path) -> list[Path]:
 
 # -- one sweep per directory --------------------------------------------------------------------
 def lock_owner(d: str | Path) -> int | None:
-    """The pid of the live sweep holding `d`'s lock; None when unlocked or when the lock's
-    owner is gone (a sweep killed by a signal leaves its lock file behind)."""
+    """The pid of the live sweep holding `d`'s lock; 0 while the lock file holds no pid yet
+    (being written: younger than LOCK_GRACE_S); None when unlocked or when the lock is stale
+    (its owner is gone: a sweep killed by a signal leaves its lock file behind)."""
+    p = Path(d) / LOCK
     try:
-        pid = int((Path(d) / LOCK).read_text() or 0)
-    except (FileNotFoundError, ValueError):
+        pid = int(p.read_text())
+    except FileNotFoundError:
         return None
+    except ValueError:  # empty or garbled
+        pid = 0
     if pid <= 0:
-        return None
+        try:
+            return 0 if time.time() - p.stat().st_mtime < LOCK_GRACE_S else None
+        except FileNotFoundError:
+            return None
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -283,25 +298,39 @@ def lock_owner(d: str | Path) -> int | None:
 
 class Lock:
     """One sweep per directory: a lock file holding the owner's pid (a stale lock of a
-    dead process is taken over)."""
+    dead process is taken over). The file is created with the pid already in it (a hard
+    link of a written file), takers check and take over one at a time (flock on the
+    directory), and the owner removes it only while it still holds its pid."""
 
     def __init__(self, d: str | Path) -> None:
         self.path = Path(d) / LOCK
 
     def __enter__(self) -> "Lock":
-        for _ in range(2):
-            try:
-                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-                os.write(fd, str(os.getpid()).encode())
-                os.close(fd)
-                return self
-            except FileExistsError:
-                pid = lock_owner(self.path.parent)
-                if pid is None:
-                    self.path.unlink(missing_ok=True)  # stale: its owner is gone
-                    continue
-                raise RuntimeError(f"another sweep (pid {pid}) is running in {self.path.parent}")
-        raise RuntimeError(f"could not lock {self.path.parent}")
+        tmp = self.path.with_name(f"{LOCK}.{os.getpid()}.{id(self)}")  # this process's own
+        dfd = os.open(self.path.parent, os.O_RDONLY)
+        try:
+            tmp.write_text(str(os.getpid()))
+            fcntl.flock(dfd, fcntl.LOCK_EX)  # else two takers could both remove a stale lock, one the other's new one
+            for _ in range(2):
+                try:
+                    os.link(tmp, self.path)  # atomic create-with-content: no reader sees it empty
+                    return self
+                except FileExistsError:
+                    pid = lock_owner(self.path.parent)
+                    if pid is None:
+                        self.path.unlink(missing_ok=True)  # stale: its owner is gone
+                        continue
+                    raise RuntimeError(f"another sweep ({f'pid {pid}' if pid else 'pid not written yet'}) "
+                                       f"is running in {self.path.parent}") from None
+            raise RuntimeError(f"could not lock {self.path.parent}")
+        finally:
+            os.close(dfd)  # releases the flock
+            tmp.unlink(missing_ok=True)
 
     def __exit__(self, *exc: object) -> None:
-        self.path.unlink(missing_ok=True)
+        try:
+            mine = int(self.path.read_text()) == os.getpid()
+        except (FileNotFoundError, ValueError):
+            return
+        if mine:  # else another sweep's (ours was taken over as stale): not ours to remove
+            self.path.unlink(missing_ok=True)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
+import functools
 import json
 import subprocess
 from collections import Counter
@@ -67,6 +68,14 @@ def git_commit(repo: str | Path = ".") -> str:
         return "unknown"
 
 
+@functools.lru_cache(maxsize=1)
+def solver_commit() -> str:
+    """Commit of the code this process simulates with, from the package's own checkout (read
+    once: a sweep that runs for hours keeps the code it started with, whatever the checkout
+    or the working directory does meanwhile); 'unknown' outside git."""
+    return git_commit(Path(__file__).resolve().parents[2])
+
+
 def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
     """Build table.csv + provenance.json from a sweep directory; returns the CSV path."""
     d = Path(sweep_dir)
@@ -84,7 +93,7 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
         "scenario": sc.as_dict(), "settings": settings, "features": info["features"],
         "spec_note": info.get("spec_note", ""), "start_from": info.get("start_from"),
         "start_point": info.get("start_point"), "start_loss_m": info.get("start_loss_m"),
-        "git_commit": git_commit(), "command": command,
+        "git_commit": solver_commit(), "command": command,  # the code this process runs
         # the code each run simulated with (rows written before runs recorded it: "unrecorded")
         "run_commits": dict(Counter(r.get("solver_commit", "unrecorded") for r in rows)),
         "resolution": {"max_area_m2": settings["max_area"], "vertices": len(garment.vertices),
