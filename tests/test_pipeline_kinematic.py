@@ -4,8 +4,11 @@ partial keypoint sets, a new fold while one runs, goals outside the search space
 the workspace or faster than the speed limit."""
 from __future__ import annotations
 
+import copy
 import math
+import os
 import re
+import signal
 import time
 
 import numpy as np
@@ -15,7 +18,7 @@ from geometry_msgs.msg import Point
 
 from pipeline_helpers import FAST_KINEMATIC, running_pipeline
 
-from clothfold_ros.nodes.conversions import fold_spec_from_msg
+from clothfold_ros.nodes.conversions import fold_spec_from_msg, time_to_ns
 
 DOMAIN = 151
 # Real time: the 2-s fold must still run when the second plan request arrives. At 4x (0.5 s of
@@ -31,6 +34,11 @@ def pipeline(monkeypatch):
 
 def _log(launcher, name):
     return "\n".join(next(p for p in launcher.procs if p.name == name).lines)
+
+
+def _starts(spec) -> np.ndarray:
+    """(G, 3) gripper start positions of a FoldSpec message (m): what the keypoints decide."""
+    return np.array([[p.position.x, p.position.y, p.position.z] for p in spec.start_poses])
 
 
 def _wait_log(launcher, name, words, timeout=20):
@@ -93,28 +101,16 @@ def test_kinematic_pipeline_and_bad_inputs(pipeline):
     for words in refusals:
         _wait_log(launcher, "trajectory_node", words)
 
-    # NaN keypoints are refused by the planner (the last good ones stay)
-    bad = Keypoints(names=["bottom_left"], points=[Point(x=math.nan, y=0.0, z=0.0)], vertex_ids=[-1])
-    deadline = time.monotonic() + 10  # republished until delivered: discovery may drop the first
-    while "keypoints ignored" not in _log(launcher, "fold_planner_node") and time.monotonic() < deadline:
-        client.keypoints_pub.publish(bad)
-        time.sleep(0.3)
-    assert "keypoints ignored" in _log(launcher, "fold_planner_node")
-    assert client.plan("left_side", execute=False).success
-    # a partial set, a foreign frame, duplicate names: refused with the reason, the last good set stays
-    partial = Keypoints(names=["neck_left"], points=[Point()], vertex_ids=[-1])
-    foreign = Keypoints(names=list(good_kp.names), points=list(good_kp.points), vertex_ids=list(good_kp.vertex_ids))
-    foreign.header.frame_id = "camera"
-    dup = Keypoints(names=list(good_kp.names[:-1]) + [good_kp.names[0]], points=list(good_kp.points),
-                    vertex_ids=list(good_kp.vertex_ids))
-    for msg, words in ((partial, "incomplete set"), (foreign, "frame is 'camera'"), (dup, "duplicate names")):
-        deadline = time.monotonic() + 10
-        while words not in _log(launcher, "fold_planner_node") and time.monotonic() < deadline:
-            client.keypoints_pub.publish(msg)
-            time.sleep(0.3)
-        assert words in _log(launcher, "fold_planner_node"), words
-        r = client.plan("middle", execute=False, wait_for_keypoints=False)
-        assert r.success, (words, r.message)
+    # Bad keypoint sets, refused by the planner with the reason: the last good set stays. The model
+    # source republishes the good set every 0.5 s, which would hide a bad set the planner took:
+    # keypoint_node is paused (SIGSTOP) meanwhile, once the planner has a set newer than the fold.
+    latest = client.wait_keypoints(30, newer_than_ns=time_to_ns(res.header.stamp))
+    kp_proc = next(p for p in launcher.procs if p.name == "keypoint_node")
+    os.kill(kp_proc.pid, signal.SIGSTOP)
+    try:
+        _bad_keypoints_are_refused(launcher, client, latest)
+    finally:
+        os.kill(kp_proc.pid, signal.SIGCONT)
 
     # two grippers: the side fold runs after all that, model keypoints republished meanwhile
     time.sleep(0.6)
@@ -125,3 +121,40 @@ def test_kinematic_pipeline_and_bad_inputs(pipeline):
     assert res.success and res.stage == 2
     assert len(fold_spec_from_msg(r.spec).spec.start_poses) == 2
     assert np.isfinite(res.height_ratio)
+
+
+def _bad_keypoints_are_refused(launcher, client, good_kp):
+    """Bad sets stamped like the good one (a current set: the planner's check of the stamp against
+    the last fold does not refuse them)."""
+    ref = client.plan("middle", execute=False)  # from the good set (retried until the planner has it)
+    assert ref.success, ref.message
+    # NaN keypoints
+    bad = Keypoints(header=copy.deepcopy(good_kp.header), names=list(good_kp.names), points=list(good_kp.points),
+                    vertex_ids=list(good_kp.vertex_ids))
+    bad.points[0] = Point(x=math.nan, y=0.0, z=0.0)
+    deadline = time.monotonic() + 10  # republished until delivered: discovery may drop the first
+    while "keypoints ignored" not in _log(launcher, "fold_planner_node") and time.monotonic() < deadline:
+        client.keypoints_pub.publish(bad)
+        time.sleep(0.3)
+    assert "keypoints ignored" in _log(launcher, "fold_planner_node")
+    r = client.plan("left_side", execute=False, wait_for_keypoints=False)
+    assert r.success, r.message  # taken, the NaN set would give no plan
+    # a partial set, a foreign frame, duplicate names (every name, one twice). Their points are the
+    # good ones moved 0.3 m: a plan made from one of them would move the grippers' start poses
+    moved = [Point(x=p.x + 0.3, y=p.y - 0.3, z=p.z) for p in good_kp.points]
+    partial = Keypoints(header=copy.deepcopy(good_kp.header), names=list(good_kp.names[:-1]), points=moved[:-1],
+                        vertex_ids=list(good_kp.vertex_ids[:-1]))
+    foreign = Keypoints(header=copy.deepcopy(good_kp.header), names=list(good_kp.names), points=moved,
+                        vertex_ids=list(good_kp.vertex_ids))
+    foreign.header.frame_id = "camera"
+    dup = Keypoints(header=copy.deepcopy(good_kp.header), names=list(good_kp.names) + [good_kp.names[0]],
+                    points=moved + [moved[0]], vertex_ids=list(good_kp.vertex_ids) + [good_kp.vertex_ids[0]])
+    for msg, words in ((partial, "incomplete set"), (foreign, "frame is 'camera'"), (dup, "duplicate names")):
+        deadline = time.monotonic() + 10
+        while words not in _log(launcher, "fold_planner_node") and time.monotonic() < deadline:
+            client.keypoints_pub.publish(msg)
+            time.sleep(0.3)
+        assert words in _log(launcher, "fold_planner_node"), words
+        r = client.plan("middle", execute=False, wait_for_keypoints=False)
+        assert r.success, (words, r.message)
+        np.testing.assert_allclose(_starts(r.spec), _starts(ref.spec), atol=1e-9, err_msg=words)

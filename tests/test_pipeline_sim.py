@@ -12,7 +12,7 @@ from pipeline_helpers import running_pipeline
 
 from clothfold_ros.garment import make_shirt
 from clothfold_ros.materials import material
-from clothfold_ros.nodes.conversions import fold_spec_from_msg, keypoints_from_msg
+from clothfold_ros.nodes.conversions import fold_spec_from_msg, keypoints_from_msg, time_to_ns
 from clothfold_ros.sim.runner import run_fold
 
 DOMAIN = 150
@@ -38,7 +38,8 @@ def test_sim_pipeline_equals_run_fold_and_tracks_the_cloth(pipeline):
     qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
     client.node.create_subscription(Marker, "/cloth/marker", markers.append, qos)
     client.node.create_subscription(Marker, "/gripper_0/marker", grippers.append, qos)
-    flat, _ = keypoints_from_msg(client.wait_keypoints(120))
+    flat_msg = client.wait_keypoints(120)
+    flat, _ = keypoints_from_msg(flat_msg)
     resp = client.plan("left_sleeve", execute=True, timeout=60)
     assert resp.success, resp.message
     res = client.wait_result("left_sleeve", 240)
@@ -64,8 +65,12 @@ def test_sim_pipeline_equals_run_fold_and_tracks_the_cloth(pipeline):
     assert all((m.scale.x, m.scale.y, m.scale.z) == (0.05, 0.12, 0.05) for m in list(grippers))
     assert grippers[-1].color.g > grippers[-1].color.r
 
-    # keypoints now come from the folded cloth: the left cuff moved onto the shirt
-    folded, _ = keypoints_from_msg(client.wait_keypoints(60, newer_than_ns=0))
+    # keypoints now come from the folded cloth: the left cuff moved onto the shirt. Only a set
+    # stamped at or after the fold's result counts (the flat set, or one from a cloth state of
+    # the motion, may still be the latest when the result arrives)
+    done_ns = time_to_ns(res.header.stamp)
+    assert time_to_ns(flat_msg.header.stamp) < done_ns
+    folded, _ = keypoints_from_msg(client.wait_keypoints(60, newer_than_ns=done_ns - 1))
     moved = np.linalg.norm(folded["sleeve_top_left"][:2] - flat["sleeve_top_left"][:2])
     assert moved > 0.1, moved
 

@@ -39,19 +39,22 @@ def run(args: argparse.Namespace) -> int:
 
     from .launcher import Launcher, node_command, run_until_interrupted
 
+    # The nodes run in the checkout (Launcher.start), not here: paths given relative to the
+    # caller's directory are made absolute before they reach a node's command line.
+    params_file = args.params_file.expanduser().absolute()
+    record = args.record.expanduser().absolute() if args.record else None
     try:
         overrides = parse_overrides(args.param)
+        if not params_file.is_file():
+            raise ValueError(f"no parameters file {args.params_file}")
+        launcher = Launcher(domain_id=args.domain_id)
     except ValueError as err:
         print(f"clothfold launch: {err}", file=sys.stderr)
         return 2
-    if not args.params_file.is_file():
-        print(f"clothfold launch: no parameters file {args.params_file}", file=sys.stderr)
-        return 2
-    launcher = Launcher(domain_id=args.domain_id)
     try:
-        launcher.start_pipeline(args.backend, args.params_file, overrides)
-        if args.record:
-            launcher.start("recorder_node", node_command("recorder_node", args=["--output", str(args.record)]))
+        launcher.start_pipeline(args.backend, params_file, overrides)
+        if record is not None:
+            launcher.start("recorder_node", node_command("recorder_node", args=["--output", str(record)]))
     except BaseException:
         launcher.stop_all()
         raise

@@ -36,11 +36,15 @@ def _fmt(value: object) -> str:
 def node_command(node: str, params_file: str | Path | None = None, params: dict | None = None,
                  args: Sequence[str] = ()) -> list[str]:
     """Command line of one node: its module under this interpreter, node arguments, then
-    --ros-args with the params file and `-p name:=value` overrides."""
+    --ros-args with the params file and `-p name:=value` overrides.
+
+    A relative params_file is made absolute against the current directory here: the node runs
+    in another one (`Launcher.start`: the checkout from source), where it would name another
+    file or none."""
     cmd = [sys.executable, "-m", f"clothfold_ros.nodes.{node}", *args]
     ros = []
     if params_file:
-        ros += ["--params-file", str(params_file)]
+        ros += ["--params-file", str(Path(params_file).expanduser().absolute())]
     for k, v in (params or {}).items():
         ros += ["-p", f"{k}:={_fmt(v)}"]
     return cmd + (["--ros-args", *ros] if ros else [])
@@ -110,6 +114,8 @@ class Launcher:
 
     # -- starting -----------------------------------------------------------------------
     def start(self, name: str, cmd: Sequence[str], cwd: str | Path | None = None) -> Process:
+        """Start one process in cwd (default `work_dir()`, not the caller's directory: paths in
+        cmd must be absolute unless meant relative to that; node_command makes its params file so)."""
         popen = subprocess.Popen(list(cmd), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                  env=self.env, cwd=str(cwd or work_dir()), start_new_session=True, text=True, bufsize=1,
                                  errors="replace")

@@ -29,15 +29,21 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..folding import fold_spec
+    from ..plan import FoldPlan
     from ..sim.report import write_outcome
-    from ..sim.runner import run_fold
+    from ..sim.runner import run_plan
     from ..sim.scene import SceneSettings, build_scene
 
+    # every argument is checked here, before the simulation: a bad one is one line and exit code 2
     try:
         scene = build_scene(SceneSettings(shape=args.shape, max_area=args.max_area, material=args.material,
                                           friction=args.friction, dt=args.dt, newton_tol=args.newton_tol))
         garment, mat, cfg = scene.garment, scene.material, scene.config
         spec = fold_spec(args.fold, garment.keypoints(scene.flat))
+        # (h, tilt, T, settle) checked by the plan itself (its trajectory is built here)
+        plan = FoldPlan(spec, args.height_ratio, args.tilt, args.duration, args.settle)
+        if args.out.exists() and not args.out.is_dir():
+            raise ValueError(f"--out {args.out} is not a directory")
     except ValueError as err:
         print(f"clothfold simulate: {err}", file=sys.stderr)
         return 2
@@ -54,8 +60,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"simulating {args.fold} of shape {args.shape} ({len(garment.vertices)} vertices, "
           f"{len(garment.triangles)} triangles), {args.material}, mu={args.friction}, "
           f"h={args.height_ratio}, tilt={args.tilt} deg, T={args.duration} s", file=sys.stderr)
-    outcome = run_fold(garment, spec, mat, scene.friction, args.height_ratio, args.tilt, args.duration,
-                       cfg.dt, args.settle, config=cfg, progress=progress)
+    outcome = run_plan(garment, plan, mat, scene.friction, config=cfg, progress=progress)
     if not args.quiet:
         print(file=sys.stderr)
     meta = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items() if k != "func"}
