@@ -206,7 +206,7 @@ def test_repeated_bad_input_keeps_being_logged(rig):
     bad.header.frame_id = "camera"
     for _ in range(5):
         r.target.publish(bad)
-    _log(r, "frame 'camera' is not 'table' (#1 of this kind")
+    _log(r, "target pose frame is 'camera'; expected 'table' (no tf here) (#1 of this kind")
     time.sleep(1.5)  # longer than the 1 s log interval: the next bad input is logged, with the counts
     r.target.publish(bad)
     line = _log(r, "(#6 of this kind")

@@ -140,8 +140,7 @@ class LockStepBackend(Node):
 
     def on_target(self, i: int, msg: PoseStamped) -> None:
         try:
-            if msg.header.frame_id not in ("", rc.TABLE_FRAME):
-                raise ValueError(f"frame {msg.header.frame_id!r} is not {rc.TABLE_FRAME!r}")
+            rc.check_table_frame(msg.header, "target pose")
             stamp = rc.time_to_ns(msg.header.stamp)
             pose = rc.pose_from_msg(msg.pose, f"gripper_{i} target")
             if not self._expects_target(i, stamp):
@@ -154,8 +153,7 @@ class LockStepBackend(Node):
 
     def on_command(self, i: int, msg: GripperCommand) -> None:
         try:
-            if msg.header.frame_id not in ("", rc.TABLE_FRAME):
-                raise ValueError(f"frame {msg.header.frame_id!r} is not {rc.TABLE_FRAME!r}")
+            rc.check_table_frame(msg.header, "command")
             if msg.gripper and msg.gripper != f"gripper_{i}":
                 raise ValueError(f"command names {msg.gripper!r} on gripper_{i}'s topic")
             if not (math.isfinite(msg.position) and msg.position >= 0):

@@ -127,11 +127,17 @@ def keypoints_to_msg(keypoints: Mapping[str, Sequence[float]], stamp_ns: int,
                      points=[point_to_msg(keypoints[n]) for n in names], vertex_ids=ids)
 
 
+def check_table_frame(header, what: str) -> None:
+    """ValueError unless `header.frame_id` is the table frame (or empty: taken as the table's);
+    there is no tf here to transform anything else."""
+    if header.frame_id not in ("", TABLE_FRAME):
+        raise ValueError(f"{what} frame is {header.frame_id!r}; expected {TABLE_FRAME!r} (no tf here)")
+
+
 def keypoints_from_msg(m: Keypoints) -> tuple[dict[str, np.ndarray], dict[str, int]]:
     """(name -> (3,) m, name -> vertex id (-1 = none)); ValueError on a frame other than the
     table frame, NaN, duplicates or mismatched array lengths."""
-    if m.header.frame_id not in ("", TABLE_FRAME):
-        raise ValueError(f"keypoints frame is {m.header.frame_id!r}; expected {TABLE_FRAME!r} (no tf here)")
+    check_table_frame(m.header, "keypoints")
     names = list(m.names)
     if not names:
         raise ValueError("keypoints message has no keypoints")
@@ -171,8 +177,7 @@ def fold_spec_to_msg(fold: PlannedFold, frame_id: str = TABLE_FRAME) -> FoldSpec
 def fold_spec_from_msg(m: FoldSpecMsg) -> PlannedFold:
     """PlannedFold from clothfold_msgs/FoldSpec; ValueError on NaN, inconsistent arrays or a plan
     that is not valid (FoldPlan's checks)."""
-    if m.header.frame_id not in ("", TABLE_FRAME):
-        raise ValueError(f"fold spec frame is {m.header.frame_id!r}; expected {TABLE_FRAME!r}")
+    check_table_frame(m.header, "fold spec")
     if not m.fold_name:
         raise ValueError("fold spec has no fold_name")
     scalars = {"height_ratio": m.height_ratio, "tilt_deg": m.tilt_deg, "duration": m.duration,
@@ -226,8 +231,7 @@ def cloth_state_to_msg(vertices: np.ndarray, triangles: np.ndarray, keypoint_ids
 
 def cloth_state_from_msg(m: ClothState) -> ClothStateData:
     """ClothStateData from a ClothState; ValueError on NaN, bad lengths or ids out of range."""
-    if m.header.frame_id not in ("", TABLE_FRAME):
-        raise ValueError(f"cloth state frame is {m.header.frame_id!r}; expected {TABLE_FRAME!r}")
+    check_table_frame(m.header, "cloth state")
     pos = np.asarray(m.positions, dtype=float)
     if pos.size == 0 or pos.size % 3:
         raise ValueError(f"cloth state has {pos.size} position values (need a positive multiple of 3)")

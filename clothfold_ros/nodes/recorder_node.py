@@ -32,6 +32,7 @@ from rclpy.utilities import remove_ros_args
 from ..bag import BagError, BagWriter, from_profile, message_definition
 from ..bag.tf import (TF_QOS, TF_STATIC_QOS, TF_STATIC_TOPIC, TF_TOPIC, TF_TYPE, Transform, encode_tf_message,
                       tf_definition)
+from . import conversions as rc
 from .common import run
 
 SUBSCRIBE_DEPTH = 1000  # queue of received, not yet written messages per topic
@@ -153,7 +154,7 @@ class RecorderNode(Node):
             m = deserialize_message(data, PoseStamped)
             p, q = m.pose.position, m.pose.orientation
             t = Transform(m.header.frame_id or ROOT_TRANSFORM[1], child,
-                          m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec,
+                          rc.time_to_ns(m.header.stamp),
                           (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
         except (BagError, ValueError, TypeError) as err:
             if child not in self._tf_warned:  # once per gripper; the pose itself is recorded
