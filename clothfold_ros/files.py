@@ -10,13 +10,24 @@ from pathlib import Path
 @contextmanager
 def replacing(path: str | Path, tmp_name: str | None = None) -> Iterator[Path]:
     """Yield a temporary path beside `path` (named `tmp_name`, default `<name>.tmp`) to write;
-    on a clean exit it is renamed onto `path` (atomic: same directory), on an error removed,
-    leaving any old `path` untouched."""
+    on a clean exit it is flushed to disk and renamed onto `path` (atomic: same directory; the
+    directory is synced too, so after a power loss `path` is the old file or the whole new one),
+    on an error removed, leaving any old `path` untouched."""
     path = Path(path)
     tmp = path.with_name(tmp_name if tmp_name is not None else path.name + ".tmp")
     try:
         yield tmp
+        _fsync(tmp, os.O_RDONLY)
         os.replace(tmp, path)
+        _fsync(path.parent, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def _fsync(path: Path, flags: int) -> None:
+    fd = os.open(path, flags)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)

@@ -51,10 +51,19 @@ def test_relative_params_file_and_bag_are_the_callers(tmp_path, monkeypatch, sta
     (["--params-file", "missing.yaml"], "no parameters file missing.yaml"),
     (["--domain-id", "999"], "ROS_DOMAIN_ID must be in 0..232, got 999"),
     (["-p", "trajectory_node:rate=5"], "bad parameter override"),
+    (["--record", "old.mcap"], "old.mcap exists (use --force to overwrite)"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(tmp_path, monkeypatch, capsys, started, extra, words):
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "old.mcap").write_bytes(b"a recording to keep")
     assert main(["launch", *extra]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and err.startswith("clothfold launch: ") and words in err, err
     assert not started
+
+
+def test_record_force_overwrites_an_existing_bag(tmp_path, monkeypatch, started):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "old.mcap").write_bytes(b"a recording to replace")
+    assert main(["launch", "--backend", "kinematic", "--record", "old.mcap", "--force"]) == 0
+    assert "recorder_node" in {name for name, _, _ in started}

@@ -17,6 +17,7 @@ COARSE = ["--max-area", "1e-2", "--quiet"]  # the checks run before the (short) 
     (["--settle", "inf"], "settle_time must be >= 0 s, got inf"),
     (["--material", "silk"], "unknown material 'silk'"),
     (["--dt", "0"], "dt must be > 0"),
+    (["--duration", "0.01"], "duration 0.01 s is shorter than one time step (dt 0.04 s)"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(tmp_path, capsys, extra, words):
     out = tmp_path / "out"

@@ -99,7 +99,7 @@ def test_parameter_changes_are_checked(env):
     rclpy.init(args=[], context=ctx)
     try:
         node = Node("param_check", context=ctx)
-        params.declare(node, trajectory_node.PARAMS, trajectory_node._workspace_check)
+        params.declare(node, trajectory_node.PARAMS, trajectory_node._param_check)
         ok = node.set_parameters([Parameter("rate", value=50.0)])[0]
         assert ok.successful and params.value(node, "rate") == 50.0
         for change, words in [(Parameter("rate", value=0.0), "out of range"),
@@ -112,6 +112,10 @@ def test_parameter_changes_are_checked(env):
             res = node.set_parameters([change])[0]
             assert not res.successful and words in res.reason, (change.name, res.reason)
         assert params.value(node, "rate") == 50.0
+        # one lookahead's burst of target poses must fit half the target topic's history (500)
+        assert node.set_parameters([Parameter("lookahead", value=5.0)])[0].successful  # 250 at 50 Hz
+        res = node.set_parameters([Parameter("rate", value=150.0)])[0]
+        assert not res.successful and "rate x lookahead = 750 target poses" in res.reason, res.reason
         ro = node.set_parameters([Parameter("n_grippers", value=1)])[0]
         assert not ro.successful  # read-only
         node.destroy_node()

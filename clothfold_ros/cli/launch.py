@@ -31,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="override one node parameter (repeatable)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID for all nodes")
     p.add_argument("--record", type=Path, default=None, metavar="BAG", help="also record every topic to BAG")
+    p.add_argument("--force", action="store_true", help="with --record: overwrite an existing BAG")
     p.set_defaults(func=run)
 
 
@@ -47,6 +48,8 @@ def run(args: argparse.Namespace) -> int:
         overrides = parse_overrides(args.param)
         if not params_file.is_file():
             raise ValueError(f"no parameters file {args.params_file}")
+        if record is not None and record.exists() and not args.force:
+            raise ValueError(f"{args.record} exists (use --force to overwrite)")
         launcher = Launcher(domain_id=args.domain_id)
     except ValueError as err:
         print(f"clothfold launch: {err}", file=sys.stderr)

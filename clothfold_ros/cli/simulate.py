@@ -42,6 +42,9 @@ def run(args: argparse.Namespace) -> int:
         spec = fold_spec(args.fold, garment.keypoints(scene.flat))
         # (h, tilt, T, settle) checked by the plan itself (its trajectory is built here)
         plan = FoldPlan(spec, args.height_ratio, args.tilt, args.duration, args.settle)
+        if args.duration < args.dt:
+            raise ValueError(f"duration {args.duration:g} s is shorter than one time step (dt {args.dt:g} s): "
+                             "no motion step")
         if args.out.exists() and not args.out.is_dir():
             raise ValueError(f"--out {args.out} is not a directory")
     except ValueError as err:

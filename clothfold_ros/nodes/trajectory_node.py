@@ -70,13 +70,25 @@ PARAMS = [
 ]
 
 
-_workspace_check = check_workspace_params
+def _param_check(values: dict, changed=()) -> str | None:
+    """Cross checks: the workspace box, and that one lookahead's burst of target poses
+    (rate x lookahead samples) fits half the target topic's history (a reliable KEEP_LAST
+    writer drops its oldest unacknowledged sample when the history is full: lock-step then
+    waits for a pose that never comes)."""
+    reason = check_workspace_params(values, changed)
+    if reason:
+        return reason
+    burst, room = values["rate"] * values["lookahead"], common.TARGETS.depth // 2
+    if burst > room:
+        return (f"rate x lookahead = {burst:g} target poses published at once, more than {room} (half the "
+                f"target_pose history of {common.TARGETS.depth}): lower rate or lookahead")
+    return None
 
 
 class TrajectoryNode(Node):
     def __init__(self) -> None:
         super().__init__("trajectory_node")
-        params.declare(self, PARAMS, _workspace_check)
+        params.declare(self, PARAMS, _param_check)
         n = params.value(self, "n_grippers")
         self._prepared = None  # (goal spec message, plan) of the goal checked last
         self.group = ReentrantCallbackGroup()
