@@ -104,12 +104,15 @@ def test_end_pose(shape, name):
         assert mid[2] > a.position[2] + 0.9 * line_distance(spec, a.position)
 
 
-def test_end_angle_180_mirrors_and_height_is_configurable():
+def test_end_angle_near_180_mirrors_and_height_is_configurable():
     kp = keypoints()
-    spec = fold_spec("right_sleeve", kp, end_angle_deg=180.0, end_height=0.02)
+    spec = fold_spec("right_sleeve", kp, end_angle_deg=179.9, end_height=0.02)
     (a,), (b,) = spec.start_poses, spec.end_poses
     assert b.position[2] == pytest.approx(0.02)
-    assert spec.side_of_line(b.position) == pytest.approx(-spec.side_of_line(a.position))
+    assert spec.side_of_line(b.position) == pytest.approx(-spec.side_of_line(a.position), rel=1e-4)
+    # a half turn has no shortest sense: the interpolated orientation could turn against the fold
+    with pytest.raises(ValueError, match=r"end_angle_deg must be in \(0, 180\) deg, got 180"):
+        fold_spec("right_sleeve", kp, end_angle_deg=180.0)
 
 
 def test_side_of_line_vectorised():
@@ -247,3 +250,30 @@ def test_fold_names_and_their_uses_come_from_the_registry():
     assert FOLD_NAMES == tuple(FOLDS) and all(f.kind in FOLD_KINDS for f in FOLDS.values())
     assert STAGE_OF_FOLD == {n: f.stage_group for n, f in FOLDS.items()}
     assert {n: fold_type(n) for n in FOLD_NAMES} == {n: f.kind for n, f in FOLDS.items()}
+
+
+def test_hem_corners_folded_onto_the_middle_are_refused_and_the_sweep_plans_from_the_flat_shirt():
+    """After both side folds the material hem corners lie a centimetre apart near the middle: a
+    middle fold planned from them put both grippers at the centre. fold_spec refuses a flat hem
+    narrower than MIN_HEM_WIDTH, so the sweep's spec_for takes the flat shirt's keypoints (the
+    study's line and grasps, a quarter of the width in from each side)."""
+    from clothfold_ros.folding import MIN_HEM_WIDTH
+    from clothfold_ros.lookup.scenario import spec_for
+
+    flat = keypoints()
+    folded = dict(flat)
+    mid = (flat["bottom_left"] + flat["bottom_right"]) / 2
+    folded["bottom_left"], folded["bottom_right"] = mid - [0.006, 0.0, 0.0], mid + [0.006, 0.0, 0.0]
+    with pytest.raises(ValueError, match="hem corners 12.0 mm apart"):
+        fold_spec("middle", folded, 170.0)
+    spec, note = spec_for("middle", folded, flat, 170.0)
+    assert note.startswith("spec from the flat shirt's keypoints") and "hem corners" in note
+    width = np.linalg.norm(flat["bottom_right"] - flat["bottom_left"])
+    xs = sorted(float((p.position - mid) @ (flat["bottom_right"] - flat["bottom_left"]) / width)
+                for p in spec.start_poses)
+    assert xs == pytest.approx([-width / 4, width / 4], abs=1e-9)
+    assert width > 3 * MIN_HEM_WIDTH  # the shirts' hems are far from the limit
+    # the visible hem after both side folds (half the flat width) still plans with folds_done
+    vis = dict(flat)
+    vis["bottom_left"], vis["bottom_right"] = mid - [width / 4, 0, 0], mid + [width / 4, 0, 0]
+    fold_spec("middle", vis, 170.0, folds_done=["left_sleeve", "right_sleeve", "left_side", "right_side"])

@@ -68,8 +68,8 @@ class SweepSettings:
         from ..sim.scene import SceneSettings  # here: the simulator's import is heavy for readers of tables
 
         sc = scenario(self.scenario)
-        if not (math.isfinite(self.end_angle_deg) and 0.0 < self.end_angle_deg <= 180.0):
-            raise ValueError(f"end_angle_deg must be in (0, 180], got {self.end_angle_deg}")
+        if not (math.isfinite(self.end_angle_deg) and 0.0 < self.end_angle_deg < 180.0):
+            raise ValueError(f"end_angle_deg must be in (0, 180) deg, got {self.end_angle_deg}")
         if not (math.isfinite(self.settle_time) and self.settle_time >= 0):
             raise ValueError(f"settle_time must be finite and >= 0 s, got {self.settle_time}")
         # the scene's and the solver's (SimConfig) own checks: max_area, dt, newton_tol, iteration cap

@@ -52,7 +52,7 @@ PARAMS = [
     Param("settle_time", 0.2, "settle time after release (s)", range=(0.0, 10.0)),
     Param("end_angle_deg", 175.0, "end pose: start pose rotated this much about the fold line (deg) when "
           "selection = parameter; a table's choice uses the table's own end angle",
-          range=(1.0, 180.0)),
+          range=(1.0, 179.0)),
     Param("end_height", 0.05, "end pose height above the table (m)", range=(0.0, 0.5)),
     Param("goal_timeout", 10.0, "wait this long for trajectory_node to accept a goal (s)", range=(0.1, 600.0)),
 ]
