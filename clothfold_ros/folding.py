@@ -201,7 +201,9 @@ def fold_spec(
     (4/3 of the visible one) in from its side; after both side folds the middle fold
     grasps the visible hem corners, i.e. a quarter of the flat width in from each side,
     where the study grasped. None or () = a flat shirt (the study planned every stage from
-    the flat keypoints, which gives the same lines and grasps on an ideally folded shirt).
+    the flat keypoints). On an ideally folded shirt the visible keypoints give the study's
+    side lines and grasps, and its middle grasps, but a middle line above the study's: after
+    the sleeve folds the visible shoulders are the creases' corners, below the flat shoulders.
     The end pose is the start pose rotated by end_angle_deg about the fold line (over the
     top), then moved to z = end_height m.
     """
