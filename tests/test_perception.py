@@ -176,3 +176,26 @@ def test_not_a_shirt_and_no_convergence(cloud):
     with pytest.raises(FitError, match="did not converge"):
         estimate_keypoints(pts, config=EstimatorConfig(max_nfev=2))
     assert issubclass(PoorFitError, PerceptionError) and issubclass(PerceptionError, ValueError)
+
+
+def test_camera_refuses_non_finite_meshes_and_survives_a_stretched_triangle():
+    """A NaN vertex once left a silent hole; one vertex 50 m away sized every triangle's candidate
+    pixel grid by its triangles' (about 42 GiB). Now: a clear error, and a stretched triangle costs
+    only its own pixels in the view; the rest of the height map is unchanged."""
+    g = make_shirt(1, max_area=2e-3)
+    cam = DepthCamera(noise=0.0, dropout=0.0)
+    bad = g.vertices.copy()
+    bad[3, 2] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        cam.height_map(bad, g.triangles)
+    with pytest.raises(ValueError, match="indices"):
+        cam.height_map(g.vertices, g.triangles + len(g.vertices))
+    xs, ys, ref = cam.height_map(g.vertices, g.triangles)
+    far = g.vertices.copy()
+    far[0] += [50.0, 0.0, 0.0]
+    _, _, z = cam.height_map(far, g.triangles)
+    gx, gy = np.meshgrid(xs, ys)
+    away = np.hypot(gx - g.vertices[0, 0], gy - g.vertices[0, 1]) > 0.1
+    away &= np.abs(gy - g.vertices[0, 1]) > 0.1  # off the stretched triangles' band toward +x
+    assert np.array_equal(z[away], ref[away], equal_nan=True)
+    assert np.isfinite(ref[away]).sum() > 1000

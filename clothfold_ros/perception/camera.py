@@ -42,6 +42,10 @@ class DepthCamera:
         no triangle covers the pixel."""
         v = np.asarray(vertices, dtype=float)
         tri = np.asarray(triangles, dtype=np.int64)
+        if v.ndim != 2 or v.shape[1] != 3 or not np.isfinite(v).all():
+            raise ValueError("vertices must be a finite (N, 3) array (m)")
+        if len(tri) and (tri.ndim != 2 or tri.shape[1] != 3 or tri.min() < 0 or tri.max() >= len(v)):
+            raise ValueError(f"triangles must be (M, 3) indices into the {len(v)} vertices")
         x0, x1, y0, y1 = self.view
         xs = np.arange(x0 + self.pitch / 2, x1, self.pitch)
         ys = np.arange(y0 + self.pitch / 2, y1, self.pitch)
@@ -50,30 +54,41 @@ class DepthCamera:
             a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
             lo = np.floor((np.minimum(np.minimum(a, b), c)[:, :2] - [x0, y0]) / self.pitch - 0.5).astype(int) + 1
             hi = np.floor((np.maximum(np.maximum(a, b), c)[:, :2] - [x0, y0]) / self.pitch - 0.5).astype(int)
-            span = int(max(1, (hi - lo).max() + 1))
-            off = np.arange(span)
-            # candidate pixels of every triangle: its bounding box, as a (T, span, span) grid
-            shape = (len(tri), span, span)
-            ix = np.broadcast_to(lo[:, 0, None, None] + off[None, None, :], shape)
-            iy = np.broadcast_to(lo[:, 1, None, None] + off[None, :, None], shape)
-            inside_box = (ix <= hi[:, 0, None, None]) & (iy <= hi[:, 1, None, None])
-            inside_box &= (ix >= 0) & (ix < len(xs)) & (iy >= 0) & (iy < len(ys))
-            t, jy, jx = np.nonzero(inside_box)
-            px, py = x0 + (ix[t, jy, jx] + 0.5) * self.pitch, y0 + (iy[t, jy, jx] + 0.5) * self.pitch
-            # barycentric coordinates of the pixel centre in its triangle (top view)
-            e1, e2 = (b - a)[t, :2], (c - a)[t, :2]
-            det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-            ok = np.abs(det) > 1e-15
-            rx, ry = px - a[t, 0], py - a[t, 1]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                u = (rx * e2[:, 1] - ry * e2[:, 0]) / det
-                w = (e1[:, 0] * ry - e1[:, 1] * rx) / det
-            ok &= (u >= -1e-12) & (w >= -1e-12) & (u + w <= 1 + 1e-12)
-            z = (a[t, 2] + u * (b - a)[t, 2] + w * (c - a)[t, 2])[ok]
-            pix = (iy[t, jy, jx] * len(xs) + ix[t, jy, jx])[ok]
-            np.maximum.at(zbuf, pix, z)
+            lo, hi = np.maximum(lo, 0), np.minimum(hi, [len(xs) - 1, len(ys) - 1])  # pixels in the view only
+            extent = (hi - lo).max(axis=1) + 1  # pixels across each triangle's box (<= 0: outside the view)
+            # triangles rasterised in groups of similar size: one stretched triangle does not size
+            # the candidate grid of all the others
+            size = 2 ** np.ceil(np.log2(np.maximum(extent, 1))).astype(int)
+            for span in np.unique(size[extent > 0]):
+                sel = np.flatnonzero((size == span) & (extent > 0))
+                self._rasterise(zbuf, a[sel], b[sel], c[sel], lo[sel], hi[sel], int(span), len(xs), len(ys))
         zbuf[~np.isfinite(zbuf)] = np.nan
         return xs, ys, zbuf.reshape(len(ys), len(xs))
+
+    def _rasterise(self, zbuf, a, b, c, lo, hi, span: int, width: int, height: int) -> None:
+        """Raise zbuf (flat H x W) to the triangles' (a, b, c: (T, 3) m) heights at the pixel centres
+        they cover, over candidate pixels lo..hi (T, 2) of each, at most span x span per triangle."""
+        x0, _, y0, _ = self.view
+        off = np.arange(span)
+        shape = (len(a), span, span)
+        ix = np.broadcast_to(lo[:, 0, None, None] + off[None, None, :], shape)
+        iy = np.broadcast_to(lo[:, 1, None, None] + off[None, :, None], shape)
+        inside_box = (ix <= hi[:, 0, None, None]) & (iy <= hi[:, 1, None, None])
+        inside_box &= (ix >= 0) & (ix < width) & (iy >= 0) & (iy < height)
+        t, jy, jx = np.nonzero(inside_box)
+        px, py = x0 + (ix[t, jy, jx] + 0.5) * self.pitch, y0 + (iy[t, jy, jx] + 0.5) * self.pitch
+        # barycentric coordinates of the pixel centre in its triangle (top view)
+        e1, e2 = (b - a)[t, :2], (c - a)[t, :2]
+        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        ok = np.abs(det) > 1e-15
+        rx, ry = px - a[t, 0], py - a[t, 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = (rx * e2[:, 1] - ry * e2[:, 0]) / det
+            w = (e1[:, 0] * ry - e1[:, 1] * rx) / det
+        ok &= (u >= -1e-12) & (w >= -1e-12) & (u + w <= 1 + 1e-12)
+        z = (a[t, 2] + u * (b - a)[t, 2] + w * (c - a)[t, 2])[ok]
+        pix = (iy[t, jy, jx] * width + ix[t, jy, jx])[ok]
+        np.maximum.at(zbuf, pix, z)
 
     def cloud(self, vertices: np.ndarray, triangles: np.ndarray,
               rng: np.random.Generator | int | None = None) -> np.ndarray:
