@@ -4,6 +4,8 @@ Units: Young's modulus in Pa, areal density in kg/m^2, thickness in m.
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, replace
 
 
@@ -18,8 +20,9 @@ class Material:
     thickness: float  # m
 
     def __post_init__(self) -> None:
-        if not (self.youngs_modulus > 0 and self.areal_density > 0 and self.thickness > 0):
-            raise ValueError(f"material {self.name!r}: modulus, density and thickness must be > 0")
+        values = (self.youngs_modulus, self.areal_density, self.thickness)
+        if not all(math.isfinite(v) and v > 0 for v in values):
+            raise ValueError(f"material {self.name!r}: modulus, density and thickness must be finite and > 0")
         if not (0.0 <= self.poisson_ratio < 0.5):
             raise ValueError(f"material {self.name!r}: Poisson ratio must be in [0, 0.5)")
 

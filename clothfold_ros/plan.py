@@ -10,6 +10,7 @@ space, workspace, speed) are policy, checked by the trajectory node (`nodes/limi
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 
 from .folding import FoldSpec
@@ -33,7 +34,8 @@ class FoldPlan:
             raise ValueError(f"a fold plan needs a FoldSpec, got {type(self.spec).__name__}")
         if not (math.isfinite(self.settle_time) and self.settle_time >= 0):
             raise ValueError(f"settle_time must be >= 0 s, got {self.settle_time}")
-        if int(self.stage) != self.stage or self.stage < 0:
+        if not (isinstance(self.stage, numbers.Real) and math.isfinite(self.stage)) or int(self.stage) != self.stage \
+                or self.stage < 0:
             raise ValueError(f"stage must be an integer >= 0, got {self.stage}")
         object.__setattr__(self, "trajectory",  # checks height ratio, tilt and duration
                            FoldTrajectory(self.spec, self.height_ratio, self.tilt_deg, self.duration))

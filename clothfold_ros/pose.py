@@ -38,6 +38,8 @@ class Pose:
     def from_axes(cls, position: np.ndarray, x_axis: np.ndarray, z_axis: np.ndarray) -> "Pose":
         """Pose from its x and z axes (orthonormalised; y = z cross x)."""
         x = np.asarray(x_axis, float)
+        if not (np.all(np.isfinite(x)) and np.linalg.norm(x) > 1e-12):
+            raise ValueError(f"gripper x axis must be finite and non-zero, got {x}")
         x = x / np.linalg.norm(x)
         z = np.asarray(z_axis, float)
         z = z - x * (x @ z)

@@ -71,13 +71,15 @@ def bezier_control_point(
     u = np.asarray(line_direction, dtype=float).reshape(3)
     if not all(np.all(np.isfinite(v)) for v in (s, e, p, u)):
         raise ValueError("start, end and fold line must be finite")
+    if not (math.isfinite(tilt_sign) and tilt_sign != 0):
+        raise ValueError(f"tilt_sign must be a finite non-zero number (its sign is used), got {tilt_sign}")
     if np.linalg.norm(u) < 1e-12 or np.linalg.norm(e - s) < 1e-12:
         raise ValueError("fold line direction and end - start must be non-zero")
     u = u / np.linalg.norm(u)
     m = p + ((s - p) @ u) * u
     c = m + np.array([0.0, 0.0, 2.0 * height_ratio * np.linalg.norm(s - m)])
     k = (e - s) / np.linalg.norm(e - s)
-    rot = Rotation.from_rotvec(float(np.sign(tilt_sign) or 1.0) * math.radians(tilt_deg) * k)
+    rot = Rotation.from_rotvec(float(np.sign(tilt_sign)) * math.radians(tilt_deg) * k)
     return s + rot.apply(c - s)
 
 

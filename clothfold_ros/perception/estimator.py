@@ -110,6 +110,20 @@ class EstimatorConfig:
     max_starts: int = 3
     spacing: float = 0.015
 
+    def __post_init__(self) -> None:
+        positive = ("pixel", "max_residual", "tolerance", "spacing", "max_area")
+        bad = [k for k in positive if not (math.isfinite(getattr(self, k)) and getattr(self, k) > 0)]
+        bad += [k for k in ("min_points", "max_nfev", "max_starts") if not getattr(self, k) >= 1]
+        bad += [k for k in ("max_invalid_fraction", "blob_fraction") if not 0.0 <= getattr(self, k) <= 1.0]
+        if not self.contour_points >= 3:
+            bad.append("contour_points")
+        if not (math.isfinite(self.min_area) and 0.0 <= self.min_area < self.max_area):
+            bad.append("min_area")
+        if not (math.isfinite(self.min_height) and math.isfinite(self.max_height) and self.min_height < self.max_height):
+            bad.append("min_height/max_height")
+        if bad:
+            raise ValueError(f"EstimatorConfig: bad {', '.join(bad)} ({self})")
+
 
 @dataclass
 class KeypointEstimate:

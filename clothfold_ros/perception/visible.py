@@ -26,6 +26,8 @@ Material keypoints stay available as `Garment.keypoints(vertices)` for evaluatio
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -50,6 +52,19 @@ class FoldLine:
     point: np.ndarray
     normal: np.ndarray
     crease: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.name:  # "" for a line of no named fold (the estimator's model)
+            fold_type(self.name)  # ValueError for an unknown fold
+        point, normal = np.asarray(self.point, float), np.asarray(self.normal, float)
+        if point.shape != (2,) or normal.shape != (2,) or not (np.isfinite(point).all() and np.isfinite(normal).all()):
+            raise ValueError(f"fold line {self.name}: point and normal must be finite (2,) arrays (m, -)")
+        if abs(np.linalg.norm(normal) - 1.0) > 1e-6:
+            raise ValueError(f"fold line {self.name}: the normal must be a unit vector, |n| = {np.linalg.norm(normal)}")
+        if not (math.isfinite(self.crease) and self.crease >= 0):
+            raise ValueError(f"fold line {self.name}: crease must be >= 0 m, got {self.crease}")
+        object.__setattr__(self, "point", point)
+        object.__setattr__(self, "normal", normal)
 
     @staticmethod
     def of(fold: "FoldLine | FoldSpec") -> "FoldLine":
