@@ -203,7 +203,7 @@ def fold_spec(
     where the study grasped. None or () = a flat shirt (the study planned every stage from
     the flat keypoints). On an ideally folded shirt the visible keypoints give the study's
     side lines and grasps, and its middle grasps, but a middle line above the study's: after
-    the sleeve folds the visible shoulders are the creases' corners, below the flat shoulders.
+    the sleeve folds the visible shoulders are the creases' corners, nearer the neck than the flat shoulders.
     The end pose is the start pose rotated by end_angle_deg about the fold line (over the
     top), then moved to z = end_height m.
     """

@@ -2,9 +2,10 @@
 
     python scripts/sequence_headless.py [--max-area 2e-4] [--out out/sequence]
 
-Every stage's (height ratio, tilt) is what the planner node picks: the TableSelector over
-the shipped tables (config/tables; for the side and middle folds, which have no table yet,
-the nearest table, both_sleeves).
+Every stage's (height ratio, tilt) is what the planner node picks for the flat shirt's keypoints:
+the TableSelector over config/tables_12k, then config/tables (the node's default). The side and
+middle folds have no complete table of their own yet: the middle fold blends the partial both_sides
+table (it holds its coarse subsample) with sleeve tables, the side folds take shape2's nearer one.
 """
 from __future__ import annotations
 
