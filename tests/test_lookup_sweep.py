@@ -361,3 +361,37 @@ def test_a_pool_left_early_drops_its_queued_runs(monkeypatch, tmp_path: Path) ->
     time.sleep(2.0)  # what 10 runs of 0.3 s take on 2 workers, with margin: all would have started
     started = len(list(tmp_path.iterdir()))
     assert 1 <= started <= 7, started  # the first 2, 2 running and at most 3 in the executor's call queue
+
+
+def test_stage_features_are_measured_as_the_planner_measures_them() -> None:
+    """A sequence stage's table features come from the keypoints the planner is sent for its start
+    state (keypoint_node: the visible keypoints after the folds made), not from the material
+    keypoints: after the sleeve folds those sit on the folded sleeves and gave both_sides a sleeve
+    length of 0.481 m where the planner measures 0.539 m."""
+    from clothfold_ros.folding import fold_spec
+    from clothfold_ros.lookup.scenario import features, folds_before, grip_distance, scenario
+    from clothfold_ros.lookup.sweep import start_features
+    from clothfold_ros.materials import material
+    from clothfold_ros.perception.visible import apply_folds, visible_keypoints
+    from clothfold_ros.garment import make_shirt
+    from clothfold_ros.sim.runner import flat_start
+
+    assert folds_before("middle") == ("left_sleeve", "right_sleeve", "left_side", "right_side")
+    assert folds_before("shape1") == ()
+    g = make_shirt(1, max_area=5e-3)
+    flat = flat_start(g, material("cotton"))
+    flat_kp = g.keypoints(flat)
+    sleeves = [fold_spec(f, flat_kp, 170.0) for f in folds_before("both_sides")]
+    x = flat.copy()
+    x[:, :2] = apply_folds(flat[:, :2], sleeves)  # the sleeves ideally folded
+    spec = fold_spec("left_side", g.keypoints(x), 170.0)
+    mine = start_features("both_sides", g, flat, x, spec, 170.0)
+    # what the pipeline's planner gets: keypoint_node's visible keypoints after the folds it saw announced
+    sc = scenario("both_sides")
+    seen = visible_keypoints(g, x, sleeves)
+    planner = features(fold_name="left_side", keypoints=seen, material_name=sc.material, friction=sc.friction,
+                       duration=sc.duration, grip=grip_distance(spec))
+    assert mine == planner
+    material_kp = features(fold_name="left_side", keypoints=g.keypoints(x), material_name=sc.material,
+                           friction=sc.friction, duration=sc.duration, grip=grip_distance(spec))
+    assert abs(material_kp["sleeve_length"] - mine["sleeve_length"]) > 0.01  # what the tables recorded before

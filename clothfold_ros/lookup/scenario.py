@@ -102,6 +102,13 @@ def scenario(name: str) -> Scenario:
         raise ValueError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}") from None
 
 
+def folds_before(name: str) -> tuple[str, ...]:
+    """The folds made before scenario `name` starts: those of the scenarios it starts after
+    (its `after` chain), in order; () for a flat start."""
+    dep = scenario(name).after
+    return () if dep is None else folds_before(dep) + SCENARIOS[dep].folds
+
+
 def generation_order(names: list[str] | None = None) -> list[str]:
     """Scenario names (default all) plus their `after` dependencies, dependencies first."""
     todo = list(SCENARIOS) if names is None else [scenario(n).name for n in names]

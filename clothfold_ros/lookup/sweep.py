@@ -17,6 +17,7 @@ from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
+from ..folding import fold_spec
 from ..garment import Garment
 from ..loss import fold_target
 from ..materials import material
@@ -26,7 +27,7 @@ from ..sim.scene import Scene, SceneSettings, build_scene
 from ..trajectory import fan
 from . import sweep_dir as layout
 from .fan_selection import coverage_order
-from .scenario import features, grip_distance, scenario, spec_for
+from .scenario import features, folds_before, grip_distance, scenario, spec_for
 from .sweep_dir import SweepSettings, load_final, read_start
 from .table import solver_commit, write_table
 
@@ -122,13 +123,43 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
         x = layout.load_final(previous_dir, int(best["point"])).astype(float)
         path = layout.write_start(sweep_dir, x, stage_target(previous_dir, garment))
         info.update(start_from=sc.after, start_point=int(best["point"]), start_loss_m=best["loss_m"])
-    kp = garment.keypoints(x)
-    spec, note = spec_for(sc.folds[0], kp, garment.keypoints(flat), settings.end_angle_deg)
+    spec, note = spec_for(sc.folds[0], garment.keypoints(x), garment.keypoints(flat), settings.end_angle_deg)
     info["spec_note"] = note
-    info["features"] = features(fold_name=sc.folds[0], keypoints=kp, material_name=sc.material,
-                                friction=sc.friction, duration=sc.duration,
-                                grip=grip_distance(spec))
+    info["features"] = start_features(sc.name, garment, flat, x, spec, settings.end_angle_deg)
     return path, info
+
+
+def start_features(name: str, garment: Garment, flat: np.ndarray, x: np.ndarray, spec,
+                   end_angle_deg: float) -> dict[str, float]:
+    """Features of scenario `name`'s first fold measured as the planner measures them: on the
+    keypoints seen on the start state x (N, 3) m, the visible ones after the folds made before
+    it (planned on the flat shirt, as the study did), with the grip distance of its spec."""
+    from ..perception.visible import visible_keypoints
+
+    sc = scenario(name)
+    flat_kp = garment.keypoints(flat)
+    done = [fold_spec(f, flat_kp, end_angle_deg) for f in folds_before(name)]
+    return features(fold_name=sc.folds[0], keypoints=visible_keypoints(garment, x, done), material_name=sc.material,
+                    friction=sc.friction, duration=sc.duration, grip=grip_distance(spec))
+
+
+def refresh_features(d: str | Path) -> dict[str, float]:
+    """Recompute the features in a sequence stage's scenario.json from its start.npz (no run is
+    simulated again: features only place the table for the planner); returns them."""
+    d = Path(d)
+    settings = layout.read_settings(d)
+    start = layout.start_file(d)
+    info = layout.read_info(d)
+    if start is None or info is None:
+        raise ValueError(f"{d} holds no sequence-stage start state (start.npz and scenario.json)")
+    scene = _scene(settings)
+    x, _ = read_start(start)
+    sc = scenario(settings.scenario)
+    spec, _ = spec_for(sc.folds[0], scene.garment.keypoints(x), scene.garment.keypoints(scene.flat),
+                       settings.end_angle_deg)
+    info["features"] = start_features(sc.name, scene.garment, scene.flat, x, spec, settings.end_angle_deg)
+    layout.write_info(d, info)
+    return info["features"]
 
 
 def stage_target(d: str | Path, garment: Garment) -> np.ndarray:

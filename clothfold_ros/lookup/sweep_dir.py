@@ -114,7 +114,9 @@ def read_info(d: str | Path) -> dict | None:
 
 
 def write_info(d: str | Path, info: dict) -> None:
-    (Path(d) / SCENARIO_INFO).write_text(json.dumps(info, indent=1))
+    """Write scenario.json whole (aside and renamed: a running sweep reads it per table)."""
+    with replacing(Path(d) / SCENARIO_INFO) as tmp:
+        tmp.write_text(json.dumps(info, indent=1))
 
 
 def is_finished(d: str | Path) -> bool:
