@@ -4,6 +4,8 @@ reason that PipelineClient.plan retries on, until newer keypoints arrive. In-pro
 isolated ROS domain; the callbacks are called directly."""
 from __future__ import annotations
 
+import time
+
 import pytest
 import rclpy
 from clothfold_msgs.msg import FoldResult
@@ -20,7 +22,8 @@ def test_keypoints_older_than_the_last_fold_result_are_not_planned_from(monkeypa
     g = make_shirt(1, max_area=5e-3)
     kp = lambda t: rc.keypoints_to_msg(g.keypoints(), t)  # noqa: E731
     ctx = rclpy.Context()
-    rclpy.init(args=["--ros-args", "-p", "selection:=parameter", "-p", "use_sim_time:=true"], context=ctx,
+    rclpy.init(args=["--ros-args", "-p", "selection:=parameter", "-p", "use_sim_time:=true",
+                     "-p", "fresh_keypoints_wait:=2.0"], context=ctx,
                domain_id=184)
     init = rclpy.node.Node.__init__
     monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
@@ -37,6 +40,13 @@ def test_keypoints_older_than_the_last_fold_result_are_not_planned_from(monkeypa
         with pytest.raises(ValueError, match="no keypoints of the cloth as it lies now"):
             node.plan("right_sleeve")
         node.on_keypoints(kp(21 * S))
+        assert node.plan("right_sleeve").fold_name == "right_sleeve"
+        # a result that brings no newer keypoints (a fold cancelled before it moved the cloth, a
+        # rejected fit) blocks planning only fresh_keypoints_wait (2 s here), then it goes on
+        node.on_result(FoldResult(header=rc.header(30 * S), fold_name="right_sleeve", success=False, reason="x"))
+        with pytest.raises(ValueError, match="no keypoints of the cloth as it lies now"):
+            node.plan("right_sleeve")
+        time.sleep(2.1)
         assert node.plan("right_sleeve").fold_name == "right_sleeve"
         node.destroy_node()
     finally:

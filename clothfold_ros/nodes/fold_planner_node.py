@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import time
 from pathlib import Path
 
 from clothfold_msgs.action import ExecuteFold
@@ -55,6 +56,9 @@ PARAMS = [
           range=(1.0, 179.0)),
     Param("end_height", 0.05, "end pose height above the table (m)", range=(0.0, 0.5)),
     Param("goal_timeout", 10.0, "wait this long for trajectory_node to accept a goal (s)", range=(0.1, 600.0)),
+    Param("fresh_keypoints_wait", 10.0, "after a /fold/result, refuse to plan from keypoints stamped before it for "
+          "up to this many wall seconds (then plan from the newest, with a warning: a fold that never moved "
+          "the cloth, or a rejected fit, brings no newer keypoints)", range=(0.0, 600.0)),
 ]
 
 
@@ -83,6 +87,7 @@ class FoldPlannerNode(Node):
         # camera sees on the folded shirt, and fold_spec needs to know which folds they follow.
         self.folds_done: list[str] = []
         self.last_result_ns = -1  # stamp of the newest /fold/result: keypoints older than it show the cloth before
+        self.last_result_wall = 0.0  # time.monotonic() when it arrived
         self.create_subscription(FoldResult, common.FOLD_RESULT, self.on_result, common.RESULTS,
                                  callback_group=self.group)
         self.create_service(Trigger, "~/reset", self.on_reset, callback_group=self.group)
@@ -108,6 +113,7 @@ class FoldPlannerNode(Node):
         with self.lock:
             if msg.fold_name in FOLD_NAMES:  # failed or not, the cloth may have moved
                 self.last_result_ns = max(self.last_result_ns, rc.time_to_ns(msg.header.stamp))
+                self.last_result_wall = time.monotonic()
             if msg.success and msg.fold_name in FOLD_NAMES and msg.fold_name not in self.folds_done:
                 self.folds_done.append(msg.fold_name)
                 self.get_logger().info(f"folds done: {', '.join(self.folds_done)}")
@@ -190,11 +196,15 @@ class FoldPlannerNode(Node):
             raise ValueError(f"unknown fold; known folds: {', '.join(FOLD_NAMES)}")
         with self.lock:
             kp, stamp, done, last = self.keypoints, self.keypoints_stamp, list(self.folds_done), self.last_result_ns
+            waited = time.monotonic() - self.last_result_wall
         if kp is None:
             raise ValueError(f"no keypoints received on {common.KEYPOINTS} yet")
         if stamp < last:
-            raise ValueError(f"no keypoints of the cloth as it lies now: the newest are stamped {stamp * 1e-9:.3f} s, "
-                             f"before the last fold result ({last * 1e-9:.3f} s)")
+            stale = (f"the newest keypoints are stamped {stamp * 1e-9:.3f} s, before the last fold result "
+                     f"({last * 1e-9:.3f} s)")
+            if waited < params.value(self, "fresh_keypoints_wait"):
+                raise ValueError(f"no keypoints of the cloth as it lies now: {stale}")
+            self.get_logger().warn(f"{stale}; none newer for {waited:.1f} s: planning from them")
         h, tilt, end_angle, note = self.select(name, kp)
         spec = fold_spec(name, kp, end_angle, params.value(self, "end_height"), folds_done=done)
         self.get_logger().info(f"{name}: h={h:g}, tilt={tilt:g} deg ({note}); keypoints stamped {stamp * 1e-9:.3f} s")

@@ -36,6 +36,7 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from . import conversions as rc
@@ -44,6 +45,8 @@ from . import common, params
 from .limits import check_plan_limits, check_trajectory, check_workspace_params
 from .params import Param
 from .waiting import wait_until
+
+PACE_WINDOW = 3.0  # s of wall time over which the clock's pace is measured (start lead)
 
 PARAMS = [
     Param("rate", 100.0, "target pose stream rate (Hz)", range=(1.0, 1000.0)),
@@ -92,6 +95,8 @@ class TrajectoryNode(Node):
         n = params.value(self, "n_grippers")
         self._prepared = None  # (goal spec message, plan) of the goal checked last
         self.group = ReentrantCallbackGroup()
+        self._clock_samples: list[tuple[float, int]] = []  # (wall s, clock ns): the clock's recent pace
+        self.create_timer(0.1, self._sample_clock, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.pose_pubs = [self.create_publisher(PoseStamped, common.gripper_topic(i, "target_pose"), common.TARGETS)
                           for i in range(n)]
         self.cmd_pubs = [self.create_publisher(GripperCommand, common.gripper_topic(i, "command"), common.COMMANDS)
@@ -152,16 +157,24 @@ class TrajectoryNode(Node):
     def now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
 
-    def _start_lead_ns(self, window: float = 0.1) -> int:
+    def _sample_clock(self) -> None:
+        """10 Hz (steady clock): (wall s, node clock ns) samples of the last PACE_WINDOW s."""
+        now = time.monotonic()
+        self._clock_samples.append((now, self.now_ns()))
+        while self._clock_samples and self._clock_samples[0][0] < now - PACE_WINDOW:
+            self._clock_samples.pop(0)
+
+    def _start_lead_ns(self) -> int:
         """Time from now to the fold's start (ns, node clock): start_delay, or more where the clock
-        runs fast enough to cover start_lead_wall in less (its pace measured over `window` wall s)."""
+        runs fast enough to cover start_lead_wall in less: its pace is the clock's advance over
+        the last PACE_WINDOW wall seconds (a burst or a stall of the backend's clock averages out)."""
         delay = rc.seconds_to_ns(params.value(self, "start_delay"))
         lead_wall = params.value(self, "start_lead_wall")
-        if lead_wall <= 0.0:
+        samples = list(self._clock_samples)
+        if lead_wall <= 0.0 or len(samples) < 2:
             return delay
-        n0, w0 = self.now_ns(), time.monotonic()
-        time.sleep(window)
-        pace = (self.now_ns() - n0) / max(time.monotonic() - w0, 1e-9)  # clock ns per wall s
+        (w0, n0), (w1, n1) = samples[0], samples[-1]
+        pace = max(0, n1 - n0) / max(w1 - w0, 1e-9)  # clock ns per wall s
         return max(delay, int(pace * lead_wall))
 
     def command(self, grippers: range, closed: bool, stamp_ns: int) -> None:
