@@ -135,6 +135,7 @@ def test_status_counts_only_the_sweeps_fan_points(tmp_path):
     (d / sweep_dir.PROVENANCE).write_text(json.dumps({"fan_points": [4, 5, 9]}))
     s = status.table_status(d)
     assert (s.runs, s.wanted, s.failed) == (2, 3, 1) and not s.complete and s.state == "partial"
+    assert s.best["point"] == 4  # 7 (1 mm) and 6 are not this sweep's points
 
 
 def test_an_empty_lock_is_being_written_and_held_until_it_is_old(tmp_path):

@@ -415,6 +415,10 @@ def test_a_fold_without_result_is_given_up_by_the_clock(monkeypatch):
         sim.spin(5.0, until=lambda: len(sim.published) == 1)
         assert sim.stamps() == [14_200_000_000]
         assert node.active is None and node.failed.name == spec.name
+        # its result comes late after all (a real robot's, more than STALE_AFTER late): the outcome is known
+        node.on_result(FoldResult(header=rc.header(16 * S + int(STALE_AFTER * S)), fold_name=spec.name,
+                                  success=True, loss=0.004))
+        assert [f.name for f in node.folds] == [spec.name] and node.failed is None
     finally:
         sim.close()
 

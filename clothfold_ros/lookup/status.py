@@ -68,8 +68,8 @@ def table_status(d: str | Path, name: str | None = None) -> TableStatus:
     if (d / PROVENANCE).exists():
         wanted = set(_fan_points(d / PROVENANCE)) or wanted
     done = [r for r in rows if int(r["point"]) in wanted]  # a run outside the sweep's points completes nothing
-    return TableStatus(name, len(done), len(wanted), sum(not r["success"] for r in done), best_row(rows),
-                       [_run_cpu_s(r) for r in rows], lock_owner(d) is not None)
+    return TableStatus(name, len(done), len(wanted), sum(not r["success"] for r in done), best_row(done),
+                       [_run_cpu_s(r) for r in done], lock_owner(d) is not None)
 
 
 def _fan_points(provenance: Path) -> list[int]:

@@ -185,11 +185,16 @@ def table_is_current(d: str | Path) -> bool:
 
     d = Path(d)
     table = d / "table.csv"
-    if not table.exists() or not (d / layout.FINALS_NPZ).exists() or any((d / layout.FINALS).glob("*.npy")):
-        return False  # no table yet, or finals not packed
+    if not table.exists() or not (d / layout.FINALS_NPZ).exists():
+        return False  # no table yet
+    logged = sorted(int(r["point"]) for r in layout.read_runs(d))
+    keys = {layout.final_key(p) for p in logged}
+    if any(f.stem in keys for f in (d / layout.FINALS).glob("*.npy")):
+        return False  # finals of logged runs not packed (a file without a logged run, from a run killed
+        #               before its row was written, is redone and overwritten when that point runs again)
     with table.open(newline="") as fh:
         tabled = sorted(int(r["point"]) for r in csv.DictReader(fh))
-    return tabled == sorted(int(r["point"]) for r in layout.read_runs(d))
+    return tabled == logged
 
 
 def finish(d: str | Path, command: str, points: list[int]) -> Path:

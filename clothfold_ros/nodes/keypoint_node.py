@@ -124,6 +124,7 @@ class KeypointNode(Node):
         self.errors = 0
         self.folds: list = []  # core FoldSpecs of the folds done, in order
         self.active = None  # the fold being executed (PlannedFold), None when the cloth rests
+        self.given_up = None  # the last fold taken as over without its result (PlannedFold)
         self.failed = None  # a fold that failed: the cloth may or may not be folded by it
         self.prior = None  # the last good estimate (source = points)
         self.skipped = None  # (callback, msg) of the last cloth message skipped while a fold ran
@@ -181,6 +182,9 @@ class KeypointNode(Node):
 
     def on_result(self, msg: FoldResult) -> None:
         active, self.active = self.active, None
+        if active is None and self.given_up is not None and self.given_up.spec.name == msg.fold_name:
+            active = self.given_up  # the result of a fold given up on came after all: its outcome is known
+        self.given_up = None
         skipped, self.skipped = self.skipped, None
         if skipped is not None:  # the cloth message that came before this result (other topic, any order)
             self.call_later((self.replay, skipped))
@@ -207,7 +211,7 @@ class KeypointNode(Node):
         timer = self.create_timer(0.001, once, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def on_reset(self, _req, resp):
-        self.folds, self.failed, self.prior, self.active = [], None, None, None
+        self.folds, self.failed, self.prior, self.active, self.given_up = [], None, None, None, None
         resp.success, resp.message = True, "fold history cleared: the cloth is taken to be flat"
         self.get_logger().info(resp.message)
         return resp
@@ -221,6 +225,7 @@ class KeypointNode(Node):
         """Take the active fold as over, its outcome unknown (its result was missed), and handle the
         cloth message held for it (after the current callback; dropped if a newer one is handled)."""
         a, self.active, self.failed = self.active, None, self.active.spec
+        self.given_up = a  # a result that still comes settles its outcome
         self.get_logger().warn(f"no result seen for fold {a.spec.name} ({why}): its outcome is taken as unknown")
         skipped, self.skipped = self.skipped, None
         if skipped is not None:
