@@ -403,3 +403,33 @@ def test_stage_features_are_measured_as_the_planner_measures_them() -> None:
     material_kp = features(fold_name="left_side", keypoints=g.keypoints(x), material_name=sc.material,
                            friction=sc.friction, duration=sc.duration, grip=grip_distance(spec))
     assert abs(material_kp["sleeve_length"] - mine["sleeve_length"]) > 0.01  # what the tables recorded before
+
+
+def test_refresh_features_rewrites_a_stage_directorys_features_only(tmp_path: Path) -> None:
+    """refresh_features recomputes scenario.json's features from start.npz (nothing simulated)
+    and keeps its other entries; a directory without a stage start state is refused."""
+    from clothfold_ros.folding import fold_spec
+    from clothfold_ros.lookup import sweep_dir as layout
+    from clothfold_ros.lookup.sweep import _scene, refresh_features, start_features
+    from clothfold_ros.perception.visible import apply_folds
+
+    d = tmp_path / "both_sides"
+    d.mkdir()
+    settings = SweepSettings("both_sides", max_area=TINY["max_area"], end_angle_deg=170.0)
+    layout.claim_settings(d, settings)
+    scene = _scene(settings)
+    flat = scene.flat
+    sleeves = [fold_spec(f, scene.garment.keypoints(flat), 170.0) for f in ("left_sleeve", "right_sleeve")]
+    x = flat.copy()
+    x[:, :2] = apply_folds(flat[:, :2], sleeves)
+    layout.write_start(d, x, flat)
+    layout.write_info(d, {"features": {"sleeve_length": 0.0}, "spec_note": "kept", "start_point": 7})
+    got = refresh_features(d)
+    spec = fold_spec("left_side", scene.garment.keypoints(x), 170.0)
+    assert got == start_features("both_sides", scene.garment, flat, x, spec, 170.0)
+    info = layout.read_info(d)
+    assert info["features"] == got and info["spec_note"] == "kept" and info["start_point"] == 7
+    with pytest.raises(ValueError, match="no sequence-stage start state"):
+        (tmp_path / "shape1").mkdir()
+        layout.claim_settings(tmp_path / "shape1", SweepSettings("shape1", max_area=TINY["max_area"]))
+        refresh_features(tmp_path / "shape1")
