@@ -158,6 +158,15 @@ class FoldSpec:
 
 MIN_HEM_WIDTH = 0.1  # m: a flat hem narrower than this is no shirt's (side and middle folds refuse it)
 
+
+def check_end_angle(end_angle_deg: float) -> None:
+    """ValueError unless 0 < end_angle_deg < 180: at 180 deg start and end orientation are a half
+    turn apart, the gripper's turn has no shortest sense, and interpolating them could turn it
+    against the fold."""
+    if not (math.isfinite(end_angle_deg) and 0.0 < end_angle_deg < 180.0):
+        raise ValueError(f"end_angle_deg must be in (0, 180) deg, got {end_angle_deg}")
+
+
 def _keypoints(name: str, keypoints: Mapping[str, object], needed: list[str]) -> dict[str, np.ndarray]:
     missing = [k for k in needed if k not in keypoints]
     if missing:
@@ -209,10 +218,7 @@ def fold_spec(
     """
     kind = fold_type(name)
     done = _done(folds_done)
-    if not (math.isfinite(end_angle_deg) and 0.0 < end_angle_deg < 180.0):
-        # at 180 deg start and end orientation are a half turn apart: the gripper's turn has no
-        # shortest sense, and interpolating them could turn it against the fold
-        raise ValueError(f"end_angle_deg must be in (0, 180) deg, got {end_angle_deg}")
+    check_end_angle(end_angle_deg)
     if not (math.isfinite(end_height) and end_height >= 0.0):
         raise ValueError(f"end_height must be >= 0 m, got {end_height}")
 
@@ -238,9 +244,10 @@ def fold_spec(
         y_hat = np.cross(_UP, x_hat)  # the shirt's +y (toward the neck)
         sides_done = [s for s in ("left", "right") if f"{s}_side" in done]
         # visible hem width -> flat hem width: each side fold hides a quarter of it
-        width = np.linalg.norm((br - bl)[:2]) / (1.0 - 0.25 * len(sides_done))
+        seen = np.linalg.norm((br - bl)[:2])
+        width = seen / (1.0 - 0.25 * len(sides_done))
         if width < MIN_HEM_WIDTH:  # e.g. the hem corners' cloth folded onto the middle: not the hem seen
-            raise ValueError(f"{name}: hem corners {np.linalg.norm((br - bl)[:2]) * 1000:.1f} mm apart give a flat "
+            raise ValueError(f"{name}: hem corners {seen * 1000:.1f} mm apart give a flat "
                              f"hem width of {width * 1000:.1f} mm, under {MIN_HEM_WIDTH * 1000:.0f} mm: not a "
                              "shirt's hem (keypoints of cloth an earlier fold moved?)")
         flat_left = bl - (width / 4 if "left" in sides_done else 0.0) * x_hat  # flat hem corners

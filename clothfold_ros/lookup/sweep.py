@@ -123,10 +123,16 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
         x = layout.load_final(previous_dir, int(best["point"])).astype(float)
         path = layout.write_start(sweep_dir, x, stage_target(previous_dir, garment))
         info.update(start_from=sc.after, start_point=int(best["point"]), start_loss_m=best["loss_m"])
-    spec, note = spec_for(sc.folds[0], garment.keypoints(x), garment.keypoints(flat), settings.end_angle_deg)
-    info["spec_note"] = note
-    info["features"] = start_features(sc.name, garment, flat, x, spec, settings.end_angle_deg)
+    info["spec_note"], info["features"] = _start_info(sc.name, garment, flat, x, settings.end_angle_deg)
     return path, info
+
+
+def _start_info(name: str, garment: Garment, flat: np.ndarray, x: np.ndarray,
+                end_angle_deg: float) -> tuple[str, dict[str, float]]:
+    """(spec note, features) of scenario `name`'s start state x (N, 3) m: how its first fold's
+    spec was planned (`spec_for`) and the features of that fold (`start_features`)."""
+    spec, note = spec_for(scenario(name).folds[0], garment.keypoints(x), garment.keypoints(flat), end_angle_deg)
+    return note, start_features(name, garment, flat, x, spec, end_angle_deg)
 
 
 def start_features(name: str, garment: Garment, flat: np.ndarray, x: np.ndarray, spec,
@@ -154,10 +160,7 @@ def refresh_features(d: str | Path) -> dict[str, float]:
         raise ValueError(f"{d} holds no sequence-stage start state (start.npz and scenario.json)")
     scene = _scene(settings)
     x, _ = read_start(start)
-    sc = scenario(settings.scenario)
-    spec, _ = spec_for(sc.folds[0], scene.garment.keypoints(x), scene.garment.keypoints(scene.flat),
-                       settings.end_angle_deg)
-    info["features"] = start_features(sc.name, scene.garment, scene.flat, x, spec, settings.end_angle_deg)
+    _, info["features"] = _start_info(settings.scenario, scene.garment, scene.flat, x, settings.end_angle_deg)
     layout.write_info(d, info)
     return info["features"]
 

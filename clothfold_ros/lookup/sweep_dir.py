@@ -16,7 +16,8 @@ A sweep of one scenario and the lookup table made from it share one directory
 | `.lock` | sweep, while running (and tabulating) | owner pid |
 
 Everything else (the sweep engine, the table format, plots) reads and writes these
-files through this module. Pure: numpy and the standard library only.
+files through this module. No rclpy; the settings are checked with the simulator's own
+checks (`SweepSettings`).
 """
 from __future__ import annotations
 
@@ -32,6 +33,7 @@ import numpy as np
 
 from ..files import replacing
 from ..sim.config import SimConfig
+from ..folding import check_end_angle
 from .scenario import scenario
 
 SETTINGS = "settings.json"
@@ -68,8 +70,7 @@ class SweepSettings:
         from ..sim.scene import SceneSettings  # here: the simulator's import is heavy for readers of tables
 
         sc = scenario(self.scenario)
-        if not (math.isfinite(self.end_angle_deg) and 0.0 < self.end_angle_deg < 180.0):
-            raise ValueError(f"end_angle_deg must be in (0, 180) deg, got {self.end_angle_deg}")
+        check_end_angle(self.end_angle_deg)
         if not (math.isfinite(self.settle_time) and self.settle_time >= 0):
             raise ValueError(f"settle_time must be finite and >= 0 s, got {self.settle_time}")
         # the scene's and the solver's (SimConfig) own checks: max_area, dt, newton_tol, iteration cap
