@@ -3,8 +3,10 @@
 # Usage: scripts/generate_lookup_tables.sh [POINTS] [MAX_AREA_M2] [OUT]
 #   POINTS: all | alternate | every:R:T | comma list of fan indices (default every:4:6)
 #   MAX_AREA_M2: mesh max triangle area (default 5e-4, ~1.2K triangles; the study's full resolution is 5e-5)
-# Shipped tables: scripts/generate_lookup_tables.sh every:4:6 5e-4 config/tables (see docs/lookup.md)
-# Full fan, full resolution:  scripts/generate_lookup_tables.sh all 5e-5 out/tables_full
+# The shipped 12K tables (resume them with this line): scripts/generate_lookup_tables.sh all 5e-5 config/tables_12k
+# The script sweeps at the defaults (400 Newton iterations, 170 deg end angle); config/tables/ was made
+# with other settings and refuses them, so a coarse run needs a fresh directory:
+#   scripts/generate_lookup_tables.sh every:4:6 5e-4 out/tables   (see docs/lookup.md)
 set -u
 # use this checkout's environment when clothfold is not on PATH (run ./clothfold once to create it)
 if ! command -v clothfold >/dev/null 2>&1; then
