@@ -194,12 +194,27 @@ def _done(folds_done: Sequence[str] | None) -> frozenset[str]:
     return done
 
 
+def body_length(keypoints: Mapping[str, object]) -> float:
+    """The flat shirt's body length (m): from the hem's midpoint to the shoulders' midpoint,
+    across the hem (along the shirt's +y, toward the neck). Measure it on the flat shirt,
+    before any fold: `fold_spec(..., body_length=...)` places the middle line with it."""
+    kp = _keypoints("body length", keypoints, ["bottom_left", "bottom_right", "shoulder_left", "shoulder_right"])
+    x_hat = _horizontal_unit(kp["bottom_right"] - kp["bottom_left"], "body length: hem")
+    up = (kp["shoulder_left"] + kp["shoulder_right"]) / 2 - (kp["bottom_left"] + kp["bottom_right"]) / 2
+    length = float(up @ np.cross(_UP, x_hat))
+    if not length > 0.0:
+        raise ValueError(f"body length: the shoulders lie {length * 1000:.1f} mm from the hem toward the neck; "
+                         "they must lie beyond it")
+    return length
+
+
 def fold_spec(
     name: str,
     keypoints: Mapping[str, object],
     end_angle_deg: float = 175.0,
     end_height: float = 0.05,
     folds_done: Sequence[str] | None = None,
+    body_length: float | None = None,
 ) -> FoldSpec:
     """The fold `name` (FOLD_NAMES) from keypoint positions (name -> (3,) m, table frame).
 
@@ -211,8 +226,11 @@ def fold_spec(
     grasps the visible hem corners, i.e. a quarter of the flat width in from each side,
     where the study grasped. None or () = a flat shirt (the study planned every stage from
     the flat keypoints). On an ideally folded shirt the visible keypoints give the study's
-    side lines and grasps, and its middle grasps, but a middle line above the study's: after
-    the sleeve folds the visible shoulders are the creases' corners, nearer the neck than the flat shoulders.
+    side lines and grasps, and its middle grasps. The middle line lies half the body length
+    above the visible hem: `body_length` (m, `body_length()` of the flat shirt's keypoints)
+    when given, which gives the study's line; without it the visible shoulders stand in for
+    the flat ones, and after the sleeve folds those are the creases' corners, nearer the neck,
+    so the line lies above the study's (11-26 mm on the three shapes).
     The end pose is the start pose rotated by end_angle_deg about the fold line (over the
     top), then moved to z = end_height m.
     """
@@ -221,6 +239,8 @@ def fold_spec(
     check_end_angle(end_angle_deg)
     if not (math.isfinite(end_height) and end_height >= 0.0):
         raise ValueError(f"end_height must be >= 0 m, got {end_height}")
+    if body_length is not None and not (math.isfinite(body_length) and body_length > 0.0):
+        raise ValueError(f"body_length must be > 0 m, got {body_length}")
 
     if kind == "sleeve":
         side = name.split("_")[0]
@@ -264,7 +284,11 @@ def fold_spec(
                 centre = (flat_left + flat_right) / 2 + ((centre - (bl + br) / 2) @ y_hat) * y_hat
             approach = [_horizontal_unit(centre - g, f"{name}: approach") for g in grips]
         else:
-            line_point = ((kp["shoulder_left"] + kp["shoulder_right"]) / 2 + (bl + br) / 2) / 2
+            hem_middle = (bl + br) / 2
+            if body_length is None:
+                line_point = ((kp["shoulder_left"] + kp["shoulder_right"]) / 2 + hem_middle) / 2
+            else:
+                line_point = hem_middle + (body_length / 2) * y_hat
             d = -x_hat  # grippers (below the line) on the up x d side
             grips = [flat_left + 0.25 * (flat_right - flat_left), flat_left + 0.75 * (flat_right - flat_left)]
             approach = [y_hat, y_hat]

@@ -1,17 +1,22 @@
 """fold_planner_node plans only from keypoints of the cloth as it lies now: keypoints stamped
 before the newest /fold/result (of any outcome: the cloth may have moved) are refused with a
-reason that PipelineClient.plan retries on, until newer keypoints arrive. In-process node,
-isolated ROS domain; the callbacks are called directly."""
+reason that PipelineClient.plan retries on, until newer keypoints arrive. It places the middle
+line with the body length it measured on the flat shirt. In-process node, isolated ROS
+domain; the callbacks are called directly."""
 from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 import rclpy
 from clothfold_msgs.msg import FoldResult
 
+from clothfold_ros.folding import FOLD_SEQUENCE, fold_spec
 from clothfold_ros.garment import make_shirt
+from clothfold_ros.loss import fold_target
 from clothfold_ros.nodes import conversions as rc
+from clothfold_ros.perception.visible import visible_keypoints
 
 S = 1_000_000_000
 
@@ -48,6 +53,47 @@ def test_keypoints_older_than_the_last_fold_result_are_not_planned_from(monkeypa
             node.plan("right_sleeve")
         time.sleep(2.1)
         assert node.plan("right_sleeve").fold_name == "right_sleeve"
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+def test_the_middle_line_comes_from_the_body_length_seen_flat(monkeypatch):
+    """After four folds the visible shoulders are the sleeve creases' corners; the planner
+    still puts the middle line where the study did, from the length it measured flat. Reset
+    (it never saw the shirt flat): the line from the visible shoulders, above the study's."""
+    from clothfold_ros.nodes.fold_planner_node import FoldPlannerNode
+
+    g = make_shirt(1, max_area=5e-4)
+    v, specs = g.vertices.copy(), []
+    for name in FOLD_SEQUENCE[:4]:  # the ideal folds, planned as the planner does
+        specs.append(fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs]))
+        v = fold_target(v, specs[-1], 3e-4)  # 0.3 mm cloth
+    folded = visible_keypoints(g, v, specs)
+    study = fold_spec("middle", g.keypoints())
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-p", "selection:=parameter"], context=ctx, domain_id=185)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+
+    def middle_line_offset(node) -> float:
+        msg = node.plan("middle")
+        p = np.array([msg.line_point.x, msg.line_point.y, msg.line_point.z])
+        return float(study.side_of_line(p))
+
+    try:
+        node = FoldPlannerNode()
+        node.on_keypoints(rc.keypoints_to_msg(g.keypoints(), 1 * S))
+        node.plan("left_sleeve")  # measured flat here
+        for k, name in enumerate(FOLD_SEQUENCE[:4]):
+            node.on_result(FoldResult(header=rc.header((2 + k) * S), fold_name=name, success=True, loss=0.004))
+        node.on_keypoints(rc.keypoints_to_msg(folded, 10 * S))
+        assert middle_line_offset(node) == pytest.approx(0.0, abs=1e-6)
+        node.on_reset(None, type("Resp", (), {})())
+        for k, name in enumerate(FOLD_SEQUENCE[:4]):
+            node.on_result(FoldResult(header=rc.header((12 + k) * S), fold_name=name, success=True, loss=0.004))
+        node.on_keypoints(rc.keypoints_to_msg(folded, 20 * S))
+        assert 0.01 < abs(middle_line_offset(node)) < 0.04  # 25 mm on shape 1
         node.destroy_node()
     finally:
         rclpy.shutdown(context=ctx)

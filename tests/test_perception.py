@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from clothfold_ros.folding import FOLD_SEQUENCE, fold_spec
+from clothfold_ros.folding import FOLD_SEQUENCE, body_length, fold_spec
 from clothfold_ros.garment import KEYPOINT_NAMES, SHAPES, ShirtShape, make_shirt
 from clothfold_ros.loss import fold_target
 from clothfold_ros.perception.camera import DepthCamera
@@ -102,8 +102,10 @@ def test_folded_states_with_the_previous_estimate_as_prior():
     cam = DepthCamera()
     v, specs = g.vertices.copy(), []
     est = estimate_keypoints(cam.cloud(v, g.triangles, rng=0))
+    length = body_length(g.keypoints())  # the planner node measures it on the flat shirt
     for k, name in enumerate(FOLD_SEQUENCE):
-        spec = fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs])
+        spec = fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs],
+                         body_length=length)
         specs.append(spec)
         v = fold_target(v, spec, T)
         est = estimate_keypoints(cam.cloud(v, g.triangles, rng=k + 1), folds=[s.name for s in specs], prior=est)

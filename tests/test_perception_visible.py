@@ -8,7 +8,7 @@ import shapely
 import shapely.affinity
 from scipy.spatial.transform import Rotation
 
-from clothfold_ros.folding import FOLD_SEQUENCE, fold_spec
+from clothfold_ros.folding import FOLD_SEQUENCE, body_length, fold_spec
 from clothfold_ros.garment import KEYPOINT_NAMES, SHAPES, make_shirt, shirt_outline
 from clothfold_ros.loss import fold_target
 from clothfold_ros.perception.visible import FoldLine, keypoint_locations, visible_keypoints
@@ -120,10 +120,28 @@ def test_each_stage_plans_like_the_study(shape):
                 np.testing.assert_allclose(pa.position, pb.position, atol=1e-9)
             assert b.side_of_line(a.line_point) == pytest.approx(0, abs=1e-9)
             assert abs(a.line_direction @ b.line_direction) == pytest.approx(1)
-    # the middle line is halfway between the hem and the visible shoulder corners, above the study's
+    # without the flat body length the middle line is halfway between the hem and the visible
+    # shoulder corners, above the study's; with it, on the study's line
     done, v, specs = st[4]
-    b = fold_spec("middle", visible_keypoints(g, v, specs), folds_done=done)
-    assert 0 < b.line_point[1] - fold_spec("middle", flat).line_point[1] < 0.04
+    study = fold_spec("middle", flat)
+    kp = visible_keypoints(g, v, specs)
+    b = fold_spec("middle", kp, folds_done=done)
+    assert 0.01 < b.line_point[1] - study.line_point[1] < 0.04
+    c = fold_spec("middle", kp, folds_done=done, body_length=body_length(flat))
+    assert study.side_of_line(c.line_point) == pytest.approx(0, abs=1e-9)
+    assert abs(study.line_direction @ c.line_direction) == pytest.approx(1)
+    for pa, pc in zip(study.end_poses, c.end_poses):  # the located hem corners' tiny skew: 20 um
+        np.testing.assert_allclose(pa.position, pc.position, atol=1e-4)
+
+
+def test_body_length_refuses_shoulders_below_the_hem():
+    g, _ = stages(1)
+    kp = g.keypoints()
+    assert 0.3 < body_length(kp) < 1.0
+    with pytest.raises(ValueError, match="beyond"):
+        body_length({**kp, "shoulder_left": kp["bottom_left"] - [0, 0.1, 0], "shoulder_right": kp["bottom_right"] - [0, 0.1, 0]})
+    with pytest.raises(ValueError, match="body_length"):
+        fold_spec("middle", kp, body_length=float("nan"))
 
 
 def test_moved_shirt_moves_its_visible_keypoints():

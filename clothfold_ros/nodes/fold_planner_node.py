@@ -31,7 +31,7 @@ from std_srvs.srv import Trigger
 
 from .action_client import LockedActionClient
 from . import conversions as rc
-from ..folding import FOLD_NAMES, FOLD_SEQUENCE, fold_spec
+from ..folding import FOLD_NAMES, FOLD_SEQUENCE, body_length, fold_spec, fold_type
 from ..garment import KEYPOINT_NAMES
 from . import common, params
 from .limits import DURATION_RANGE, HEIGHT_RATIO_RANGE, TILT_RANGE_DEG
@@ -88,6 +88,9 @@ class FoldPlannerNode(Node):
         self.folds_done: list[str] = []
         self.last_result_ns = -1  # stamp of the newest /fold/result: keypoints older than it show the cloth before
         self.last_result_wall = 0.0  # time.monotonic() when it arrived
+        # the flat shirt's body length (m), measured when a fold is planned on the flat shirt: the
+        # middle line lies half of it above the hem (folding.fold_spec); None = not seen flat
+        self.flat_body_length: float | None = None
         self.create_subscription(FoldResult, common.FOLD_RESULT, self.on_result, common.RESULTS,
                                  callback_group=self.group)
         self.create_service(Trigger, "~/reset", self.on_reset, callback_group=self.group)
@@ -120,7 +123,7 @@ class FoldPlannerNode(Node):
 
     def on_reset(self, _req, resp):
         with self.lock:
-            self.folds_done, self.last_result_ns = [], -1
+            self.folds_done, self.last_result_ns, self.flat_body_length = [], -1, None
         resp.success, resp.message = True, "folds done forgotten (the shirt lies flat)"
         return resp
 
@@ -205,12 +208,28 @@ class FoldPlannerNode(Node):
             if waited < params.value(self, "fresh_keypoints_wait"):
                 raise ValueError(f"no keypoints of the cloth as it lies now: {stale}")
             self.get_logger().warn(f"{stale}; none newer for {waited:.1f} s: planning from them")
+        length = self.flat_length(kp, done, name)
         h, tilt, end_angle, note = self.select(name, kp)
-        spec = fold_spec(name, kp, end_angle, params.value(self, "end_height"), folds_done=done)
+        spec = fold_spec(name, kp, end_angle, params.value(self, "end_height"), folds_done=done, body_length=length)
         self.get_logger().info(f"{name}: h={h:g}, tilt={tilt:g} deg ({note}); keypoints stamped {stamp * 1e-9:.3f} s")
         return rc.fold_spec_to_msg(rc.PlannedFold(spec, h, tilt, params.value(self, "duration"),
                                                   params.value(self, "settle_time"), FOLD_SEQUENCE.index(name),
                                                   self.get_clock().now().nanoseconds))
+
+    def flat_length(self, kp: dict, done: list[str], name: str) -> float | None:
+        """The flat shirt's body length (m): measured on kp while no fold is done, else the one
+        measured then (None, with a warning for the middle fold, if the planner never saw it flat)."""
+        if not done:
+            length = body_length(kp)
+            with self.lock:
+                self.flat_body_length = length
+            return length
+        with self.lock:
+            length = self.flat_body_length
+        if length is None and fold_type(name) == "middle":
+            self.get_logger().warn("the shirt was never seen flat (planner started or reset after a fold): the "
+                                   "middle line lies halfway between the visible shoulders and hem, above the study's")
+        return length
 
     def send(self, msg: FoldSpecMsg) -> tuple[bool, str]:
         timeout = params.value(self, "goal_timeout")

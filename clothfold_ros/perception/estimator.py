@@ -34,7 +34,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..folding import FOLD_NAMES, FoldSpec, fold_spec
+from ..folding import FOLD_NAMES, FoldSpec, body_length, fold_spec
 from ..garment import KEYPOINT_NAMES, SHAPES, ShirtShape, _outline_unit
 from .visible import FoldLine, ideal_visible_keypoints
 
@@ -316,10 +316,11 @@ class _Model:
         out: list[tuple[np.ndarray, float, float]] = []
         done: list[FoldLine] = list(self.fixed)
         o = model_outline(shape)
+        length = body_length({k: np.array([x, y, 0.0]) for k, (x, y) in zip(KEYPOINT_NAMES, o)})
         for name in self.names[len(self.fixed):]:
             kp2 = ideal_visible_keypoints(o, done)
             kp = {k: np.array([x, y, 0.0]) for k, (x, y) in zip(KEYPOINT_NAMES, kp2)}
-            spec = fold_spec(name, kp, folds_done=[ln.name for ln in done])
+            spec = fold_spec(name, kp, folds_done=[ln.name for ln in done], body_length=length)
             d, n = spec.line_direction[:2], spec.normal[:2]
             side = 1.0 if d[0] * n[1] - d[1] * n[0] > 0 else -1.0
             out.append((spec.line_point[:2].copy(), math.atan2(d[1], d[0]), side))

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
-from ..folding import FOLD_SEQUENCE, FoldSpec, fold_spec
+from ..folding import FOLD_SEQUENCE, FoldSpec, body_length, fold_spec
 from .episode import FoldOutcome
 from .runner import run_fold
 from .scene import Scene
@@ -42,9 +42,10 @@ def run_sequence(scene: Scene, choices: Mapping[str, tuple[float, float]], folds
     specs: list[FoldSpec] = []
     done: list[str] = []
     results: list[StageResult] = []
+    length = body_length(visible_keypoints(scene.garment, x))  # measured on the flat shirt, like the planner node
     for fold in folds:
         kp = visible_keypoints(scene.garment, x, specs)
-        spec = fold_spec(fold, kp, folds_done=done)
+        spec = fold_spec(fold, kp, folds_done=done, body_length=length)
         h, tilt = choices[fold]
         out = run_fold(scene.garment, spec, scene.material, scene.friction, h, tilt, duration, scene.config.dt,
                        settle_time, vertices=x, target_base=base, config=scene.config)
