@@ -97,3 +97,41 @@ def test_the_middle_line_comes_from_the_body_length_seen_flat(monkeypatch):
         node.destroy_node()
     finally:
         rclpy.shutdown(context=ctx)
+
+
+def test_the_folds_the_keypoints_follow_are_the_history_planned_with(monkeypatch):
+    """One history: keypoints that name the folds they follow (keypoint_node's, which may adopt a
+    failed fold the cloud shows) override the planner's count of successful results; a fold
+    they follow is not planned again; a message naming an unknown fold is ignored."""
+    from clothfold_ros.nodes.fold_planner_node import FoldPlannerNode
+
+    g = make_shirt(1, max_area=5e-4)
+    v, specs = g.vertices.copy(), []
+    for name in FOLD_SEQUENCE[:4]:
+        specs.append(fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs]))
+        v = fold_target(v, specs[-1], 3e-4)
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-p", "selection:=parameter"], context=ctx, domain_id=187)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+    study = fold_spec("middle", g.keypoints())
+    try:
+        node = FoldPlannerNode()
+        node.on_keypoints(rc.keypoints_to_msg(g.keypoints(), 1 * S, folds=[]))
+        node.plan("left_sleeve")
+        # every fold failed by its results, but the keypoints show the four folds made
+        for k, name in enumerate(FOLD_SEQUENCE[:4]):
+            node.on_result(FoldResult(header=rc.header((2 + k) * S), fold_name=name, success=False, reason="x"))
+        node.on_keypoints(rc.keypoints_to_msg(visible_keypoints(g, v, specs), 10 * S, folds=FOLD_SEQUENCE[:4]))
+        msg = node.plan("middle")  # planned on the hem the cloth shows: the study's middle fold
+        assert study.side_of_line(np.array([msg.line_point.x, msg.line_point.y, 0.0])) == pytest.approx(0, abs=1e-6)
+        for a, b in zip(study.start_poses, msg.start_poses):
+            assert np.hypot(a.position[0] - b.position.x, a.position[1] - b.position.y) < 1e-6
+        with pytest.raises(ValueError, match=r"follow folds \[left_sleeve, .*left_side is done already"):
+            node.plan("left_side")
+        bad = rc.keypoints_to_msg(g.keypoints(), 11 * S, folds=["left_sleeve", "no_such_fold"])
+        node.on_keypoints(bad)  # ignored: the last good keypoints stay
+        assert node.keypoints_stamp == 10 * S and node.keypoint_folds == list(FOLD_SEQUENCE[:4])
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)

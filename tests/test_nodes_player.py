@@ -1,5 +1,6 @@
 """player_node (`clothfold replay`): nothing to play is refused at once (with --loop it would
-spin at full CPU), and a SIGTERM/SIGINT stop is clean: exit code 0 with the summary line, also
+spin at full CPU; topics of types not installed, or recorded with another definition, are
+skipped), and a SIGTERM/SIGINT stop is clean: exit code 0 with the summary line, also
 when a second interrupt arrives while the node is being cleaned up."""
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ def _bag(path: Path, topics: dict[str, list[float]], types: dict[str, str] | Non
 
     with BagWriter(path) as w:
         for topic in topics:
-            if topic in (types or {}):  # a type not installed here: its definition given
+            if topic in (types or {}):  # its definition and type hash given (not the installed ones)
                 w.add_topic(topic, types[topic], [Qos(depth=10)], definition="string data", type_hash="h")
             else:
                 w.add_topic(topic, "std_msgs/msg/String", [Qos(depth=10)])
@@ -48,6 +49,10 @@ def _bag(path: Path, topics: dict[str, list[float]], types: dict[str, str] | Non
     ({"/a": [0.0, 1.0], "/b": []}, {"topics": ["/b"]}, "no messages on /b"),
     ({"/a": [0.0, 1.0], "/x": [0.5]}, {"topics": ["/x"], "types": {"/x": "no_such_msgs/msg/Thing"}},
      "every topic is skipped (/x: type no_such_msgs/msg/Thing is not installed"),
+    # an installed type recorded with another definition (type hash "h"): its bytes would not decode
+    ({"/a": [0.0, 1.0], "/y": [0.5]}, {"topics": ["/y"], "types": {"/y": "std_msgs/msg/String"}},
+     "every topic is skipped (/y: recorded with another definition of std_msgs/msg/String (type hash h, "
+     "installed RIHS01_"),
 ])
 def test_nothing_to_play_is_refused_at_start(ros_env, tmp_path, topics, kwargs, words):
     import rclpy

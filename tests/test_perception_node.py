@@ -92,6 +92,7 @@ def test_points_good_bad_and_folded_clouds(env):
             kp, ids = feed.keypoints(0)
             assert np.median(err_mm(kp, g.keypoints())) < 10.0
             assert set(ids.values()) == {-1}
+            assert rc.keypoint_folds_from_msg(feed.client.keypoints) == []  # the flat shirt's
             launcher.wait_for(node, "residual", 20)
             # broken clouds: logged with the reason, the last good keypoints stay
             feed.cloud(np.zeros((0, 3)), 2 * S)
@@ -127,6 +128,7 @@ def test_points_good_bad_and_folded_clouds(env):
             launcher.wait_for(node, "fold left_sleeve done", 20)
             truth = visible_keypoints(g, v, [spec])
             assert np.median(err_mm(kp, truth)) < 10.0
+            assert rc.keypoint_folds_from_msg(feed.client.keypoints) == ["left_sleeve"]
             assert np.linalg.norm((kp["sleeve_top_left"] - truth["sleeve_top_left"])[:2]) < 0.02
             launcher.check_alive()
         finally:
@@ -175,6 +177,7 @@ def test_cloth_state_source_reports_visible_keypoints(env):
             stamp = 100 * S
             feed.client.state_pub.publish(rc.cloth_state_to_msg(v, g.triangles, g.keypoint_ids, T, stamp))
             kp, ids = feed.keypoints(stamp - 1)
+            assert rc.keypoint_folds_from_msg(feed.client.keypoints) == [s.name for s in sides]
             truth = visible_keypoints(g, v, sides)
             for n in KEYPOINT_NAMES:
                 np.testing.assert_allclose(kp[n], truth[n], atol=1e-6)  # float32 positions in the message

@@ -20,7 +20,7 @@ from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker
 
-from ..folding import FoldSpec
+from ..folding import FOLD_NAMES, FoldSpec
 from . import limits
 from ..plan import FoldPlan
 from ..pose import Pose
@@ -120,11 +120,30 @@ def gripper_command(gripper: int, position: float, max_effort: float, stamp_ns: 
 
 # -- keypoints ----------------------------------------------------------------------------
 def keypoints_to_msg(keypoints: Mapping[str, Sequence[float]], stamp_ns: int,
-                     vertex_ids: Mapping[str, int] | None = None, frame_id: str = TABLE_FRAME) -> Keypoints:
+                     vertex_ids: Mapping[str, int] | None = None, frame_id: str = TABLE_FRAME,
+                     folds: Sequence[str] | None = None) -> Keypoints:
+    """folds: the folds the keypoints follow, in order ([] = flat; None = not tracked)."""
     names = list(keypoints)
     ids = [int(vertex_ids[n]) if vertex_ids and n in vertex_ids else -1 for n in names]
     return Keypoints(header=header(stamp_ns, frame_id), names=names,
-                     points=[point_to_msg(keypoints[n]) for n in names], vertex_ids=ids)
+                     points=[point_to_msg(keypoints[n]) for n in names], vertex_ids=ids,
+                     folds_known=folds is not None, folds=list(folds or []))
+
+
+def keypoint_folds_from_msg(m: Keypoints) -> list[str] | None:
+    """The folds a Keypoints message says its keypoints follow (None: not tracked); ValueError
+    on an unknown or repeated fold name."""
+    if not m.folds_known:
+        if len(m.folds):
+            raise ValueError(f"keypoints message lists folds {list(m.folds)} but folds_known is false")
+        return None
+    folds = list(m.folds)
+    unknown = [f for f in folds if f not in FOLD_NAMES]
+    if unknown:
+        raise ValueError(f"keypoints message lists unknown folds {unknown}; known folds: {', '.join(FOLD_NAMES)}")
+    if len(set(folds)) != len(folds):
+        raise ValueError(f"keypoints message lists a fold twice: {folds}")
+    return folds
 
 
 def check_table_frame(header, what: str) -> None:

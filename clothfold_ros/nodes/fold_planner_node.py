@@ -78,6 +78,7 @@ class FoldPlannerNode(Node):
         self.group = ReentrantCallbackGroup()
         self.keypoints: dict | None = None
         self.keypoints_stamp = 0
+        self.keypoint_folds: list[str] | None = None  # the folds the keypoints follow, if their publisher says
         self.create_subscription(Keypoints, common.KEYPOINTS, self.on_keypoints, common.LATCHED,
                                  callback_group=self.group)
         self.spec_pub = self.create_publisher(FoldSpecMsg, common.FOLD_SPEC, common.LATCHED)
@@ -102,6 +103,7 @@ class FoldPlannerNode(Node):
     def on_keypoints(self, msg: Keypoints) -> None:
         try:
             kp, _ = rc.keypoints_from_msg(msg)
+            folds = rc.keypoint_folds_from_msg(msg)
             missing = [n for n in KEYPOINT_NAMES if n not in kp]
             if missing:  # a partial set never replaces a complete one
                 raise ValueError(f"incomplete set: {len(missing)} of {len(KEYPOINT_NAMES)} keypoints missing "
@@ -110,7 +112,7 @@ class FoldPlannerNode(Node):
             self.get_logger().error(f"keypoints ignored (keeping the last good ones): {err}")
             return
         with self.lock:
-            self.keypoints, self.keypoints_stamp = kp, rc.time_to_ns(msg.header.stamp)
+            self.keypoints, self.keypoints_stamp, self.keypoint_folds = kp, rc.time_to_ns(msg.header.stamp), folds
 
     def on_result(self, msg: FoldResult) -> None:
         with self.lock:
@@ -199,9 +201,17 @@ class FoldPlannerNode(Node):
             raise ValueError(f"unknown fold; known folds: {', '.join(FOLD_NAMES)}")
         with self.lock:
             kp, stamp, done, last = self.keypoints, self.keypoints_stamp, list(self.folds_done), self.last_result_ns
+            seen = self.keypoint_folds
             waited = time.monotonic() - self.last_result_wall
         if kp is None:
             raise ValueError(f"no keypoints received on {common.KEYPOINTS} yet")
+        if seen is not None:  # one history: the folds the keypoints follow, as the keypoint source saw them
+            if seen != done:
+                self.get_logger().warn(f"the keypoints follow folds [{', '.join(seen)}], the fold results "
+                                       f"[{', '.join(done)}]: planning with the keypoints' folds")
+            done = seen
+        if name in done:
+            raise ValueError(f"the keypoints follow folds [{', '.join(done)}]: {name} is done already")
         if stamp < last:
             stale = (f"the newest keypoints are stamped {stamp * 1e-9:.3f} s, before the last fold result "
                      f"({last * 1e-9:.3f} s)")

@@ -317,7 +317,7 @@ class KeypointNode(Node):
         self.failed = None
         self.prior = est
         self.published_ns = stamp
-        self.pub.publish(rc.keypoints_to_msg(est.keypoints, stamp))
+        self.pub.publish(rc.keypoints_to_msg(est.keypoints, stamp, folds=names))
         self.outline_pub.publish(self.outline_marker(est.segments, stamp))
         self.count += 1
         if self.count == 1 or self.count % 20 == 0:
@@ -375,7 +375,7 @@ class KeypointNode(Node):
             self.get_logger().error(f"bad cloth state skipped ({self.errors} so far): {err}")
             return
         self.published_ns = state.stamp_ns
-        self.pub.publish(rc.keypoints_to_msg(kp, state.stamp_ns, ids))
+        self.pub.publish(rc.keypoints_to_msg(kp, state.stamp_ns, ids, folds=self.fold_names()))
         self.count += 1
 
 

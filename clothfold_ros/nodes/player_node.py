@@ -6,7 +6,8 @@ topic is published with a QoS adapted from the recorded offers (reliable / trans
 only when every recorded publisher offered it). ``--clock`` publishes rosgraph_msgs/Clock
 with the bag time at HZ and before every message; a /clock recorded in the bag is then not
 replayed (one clock only). A damaged or truncated bag gives a one
-line error (exit code 1), topics whose type is not installed are skipped and reported.
+line error (exit code 1), topics whose type is not installed, or was recorded with another
+definition (type hash) than the installed one, are skipped and reported.
 Nothing to play (every topic skipped, no message on the topics played at or after the
 start offset) is a one-line error too, at start: ``--loop`` would otherwise spin.
 SIGINT/SIGTERM stop the replay with its summary line and exit code 0.
@@ -28,8 +29,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import uninstall_signal_handlers
 from rclpy.utilities import remove_ros_args
 
-from ..bag import BagError, BagReader, Qos, playback_qos
+from ..bag import BagError, BagReader, Qos, message_definition, playback_qos
 from ..bag.playback import PlaybackClock, add_playback_arguments
+from .conversions import ns_to_time
 from .recorder_node import message_class
 
 
@@ -83,8 +85,13 @@ class Player:
             info = bag.topics[name]
             try:
                 cls = message_class(info.type)
-            except (ImportError, AttributeError, ValueError) as err:
+                installed = message_definition(info.type).type_hash
+            except (ImportError, AttributeError, ValueError, BagError) as err:
                 self.stats.skipped[name] = f"type {info.type} is not installed ({err})"
+                continue
+            if info.type_hash and info.type_hash != installed:  # its bytes would not decode as the installed type
+                self.stats.skipped[name] = (f"recorded with another definition of {info.type} (type hash "
+                                            f"{info.type_hash}, installed {installed})")
                 continue
             self.publishers[name] = node.create_publisher(cls, name, to_profile(playback_qos(info.offered_qos)))
         self._check_something_to_play(start_offset)
@@ -107,9 +114,7 @@ class Player:
                            f"({self.bag.duration_ns / 1e9:.3f} s long)")
 
     def _publish_clock(self, t_ns: int) -> None:
-        msg = self._clock_cls()
-        msg.clock.sec, msg.clock.nanosec = divmod(int(t_ns), 1_000_000_000)
-        self.clock_pub.publish(msg)
+        self.clock_pub.publish(self._clock_cls(clock=ns_to_time(t_ns)))
 
     def _wait_until(self, clock: PlaybackClock, due: float) -> None:
         while True:

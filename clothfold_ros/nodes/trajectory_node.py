@@ -28,6 +28,7 @@ import math
 import sys
 import threading
 import time
+from collections import deque
 
 import numpy as np
 from clothfold_msgs.action import ExecuteFold
@@ -95,7 +96,7 @@ class TrajectoryNode(Node):
         n = params.value(self, "n_grippers")
         self._prepared = None  # (goal spec message, plan) of the goal checked last
         self.group = ReentrantCallbackGroup()
-        self._clock_samples: list[tuple[float, int]] = []  # (wall s, clock ns): the clock's recent pace
+        self._clock_samples: deque[tuple[float, int]] = deque()  # (wall s, clock ns): the clock's recent pace
         self.create_timer(0.1, self._sample_clock, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.pose_pubs = [self.create_publisher(PoseStamped, common.gripper_topic(i, "target_pose"), common.TARGETS)
                           for i in range(n)]
@@ -162,7 +163,7 @@ class TrajectoryNode(Node):
         now = time.monotonic()
         self._clock_samples.append((now, self.now_ns()))
         while self._clock_samples and self._clock_samples[0][0] < now - PACE_WINDOW:
-            self._clock_samples.pop(0)
+            self._clock_samples.popleft()
 
     def _start_lead_ns(self) -> int:
         """Time from now to the fold's start (ns, node clock): start_delay, or more where the clock
