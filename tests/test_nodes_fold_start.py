@@ -4,6 +4,8 @@ backend gets /fold/active before its clock reaches the start even at a real-time
 where start_delay (0.5 s of sim time) alone passes in 10 ms of wall time."""
 from __future__ import annotations
 
+import pytest
+
 from pipeline_helpers import FAST_KINEMATIC, running_pipeline
 
 DOMAIN = 183
@@ -18,3 +20,22 @@ def test_fold_on_a_fifty_times_real_time_clock_starts_and_completes(monkeypatch)
         assert resp.success, resp.message
         res = client.wait_result("left_sleeve", 60, after=before)
         assert res.success and res.steps == 50, res.reason
+
+
+def test_the_start_lead_uses_the_clock_s_fastest_pace():
+    """A backend clock starved for 2 s, then at 50x for 0.6 s: the mean pace over the 3 s
+    window (about 10x) would put the start 5 s of clock time ahead, 0.1 s of wall time at 50x;
+    the fastest pace over 0.5 s stretches is the 50x the clock runs at now."""
+    from clothfold_ros.nodes.trajectory_node import fastest_pace
+
+    s = 1e9
+    stalled = [(0.1 * k, int(0.1 * s * k)) for k in range(5)]  # 1x for 0.4 s
+    stalled += [(0.4 + 0.1 * k, int(0.4 * s)) for k in range(1, 21)]  # stopped until 2.4 s
+    burst = [(2.4 + 0.1 * k, int(0.4 * s + 5 * s * k)) for k in range(1, 7)]  # 50x until 3.0 s
+    samples = stalled + burst
+    (w0, c0), (w1, c1) = samples[0], samples[-1]
+    assert (c1 - c0) / (w1 - w0) < 11 * s  # the mean
+    assert fastest_pace(samples) == pytest.approx(50 * s)
+    assert fastest_pace(stalled[:3]) == pytest.approx(1 * s)  # shorter than a span: over all of them
+    assert fastest_pace(stalled[:1]) == 0.0
+    assert fastest_pace([(0.0, 0), (0.3, 0), (0.6, 0)]) == 0.0

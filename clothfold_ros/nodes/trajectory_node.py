@@ -48,6 +48,24 @@ from .params import Param
 from .waiting import wait_until
 
 PACE_WINDOW = 3.0  # s of wall time over which the clock's pace is measured (start lead)
+PACE_SPAN = 0.5  # s of wall time: the shortest stretch a pace is measured over (timer jitter averages out)
+
+
+def fastest_pace(samples: list[tuple[float, int]], span: float = PACE_SPAN) -> float:
+    """The clock's fastest pace (clock ns per wall s) over any stretch of at least span wall
+    seconds between samples (wall s, clock ns), in time order; over all of them if they span
+    less; 0 for fewer than two. The fastest, not the mean: a backend starved for a while (a
+    loaded machine) and then running at full speed would otherwise get too short a lead."""
+    if len(samples) < 2:
+        return 0.0
+    wall = np.array([w for w, _ in samples])
+    clock = np.array([c for _, c in samples], dtype=float)
+    if wall[-1] - wall[0] < span:
+        return max(0.0, clock[-1] - clock[0]) / max(wall[-1] - wall[0], 1e-9)
+    ends = np.searchsorted(wall, wall + span)  # the first sample at least span later
+    ok = ends < len(wall)
+    i, j = np.flatnonzero(ok), ends[ok]
+    return float(max(0.0, np.max((clock[j] - clock[i]) / (wall[j] - wall[i]))))
 
 PARAMS = [
     Param("rate", 100.0, "target pose stream rate (Hz)", range=(1.0, 1000.0)),
@@ -167,16 +185,13 @@ class TrajectoryNode(Node):
 
     def _start_lead_ns(self) -> int:
         """Time from now to the fold's start (ns, node clock): start_delay, or more where the clock
-        runs fast enough to cover start_lead_wall in less: its pace is the clock's advance over
-        the last PACE_WINDOW wall seconds (a burst or a stall of the backend's clock averages out)."""
+        runs fast enough to cover start_lead_wall in less: its pace is the fastest the clock ran
+        over the last PACE_WINDOW wall seconds (`fastest_pace`)."""
         delay = rc.seconds_to_ns(params.value(self, "start_delay"))
         lead_wall = params.value(self, "start_lead_wall")
-        samples = list(self._clock_samples)
-        if lead_wall <= 0.0 or len(samples) < 2:
+        if lead_wall <= 0.0:
             return delay
-        (w0, n0), (w1, n1) = samples[0], samples[-1]
-        pace = max(0, n1 - n0) / max(w1 - w0, 1e-9)  # clock ns per wall s
-        return max(delay, int(pace * lead_wall))
+        return max(delay, int(fastest_pace(list(self._clock_samples)) * lead_wall))
 
     def command(self, grippers: range, closed: bool, stamp_ns: int) -> None:
         pos = 0.0 if closed else params.value(self, "open_position")
