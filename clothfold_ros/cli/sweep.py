@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -31,11 +32,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=int, default=None, help="local processes (default: number of cores)")
     p.add_argument("--ray", default=None, metavar="ADDRESS",
                    help="run on Ray: a cluster address, 'auto', or 'local' (a private single-node Ray here)")
+    p.add_argument("--nice", type=int, default=10,
+                   help="run the local workers at least this nice (default 10: hours of background CPU yield to "
+                   "the nodes, tests and a user's commands on the same cores; 0 = as started)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--table-only", action="store_true",
                    help="simulate nothing: write the (partial) table of the runs done so far; its provenance "
                    "lists the missing points")
     p.set_defaults(func=run)
+
+
+def raise_niceness(nice: int) -> None:
+    """Make this process (and the workers it starts, which inherit it) at least `nice` nice;
+    a niceness can only be raised. ValueError outside 0..19."""
+    if not 0 <= nice <= 19:
+        raise ValueError(f"--nice must be 0..19, got {nice}")
+    current = os.nice(0)
+    if nice > current:
+        os.nice(nice - current)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -77,6 +91,11 @@ def run(args: argparse.Namespace) -> int:
     def tabulate(_row: dict) -> None:  # after every run: a sweep ended mid-way leaves the table of its runs
         write_table(d, command, points)
 
+    try:
+        raise_niceness(args.nice)
+    except ValueError as err:
+        print(f"clothfold sweep: {err}", file=sys.stderr)
+        return 2
     try:  # finished (table, packed finals) under the sweep's lock; kept as it is when nothing is new
         rows = run_sweep(settings, d, points, workers=args.workers, ray_address=args.ray, previous_dir=prev,
                          progress=not args.quiet, on_row=tabulate, command=command)
