@@ -84,6 +84,27 @@ def test_fold_spec_round_trip_and_errors(shirt):
         rc.fold_spec_from_msg(msg)
 
 
+def test_fold_histories_round_trip_and_errors(shirt):
+    """The folds a plan assumes made (FoldSpec.folds_done) and the folds keypoints follow
+    (Keypoints.folds): None = not given, [] = the flat shirt; bad lists are refused."""
+    spec = fold_spec("left_side", shirt.keypoints())
+    for done in (None, (), ("left_sleeve", "right_sleeve")):
+        back = rc.fold_spec_from_msg(rc.fold_spec_to_msg(rc.PlannedFold(spec, 0.6, 25.0, folds_done=done)))
+        assert back.folds_done == done
+        kp = rc.keypoints_to_msg(shirt.keypoints(), 5, folds=done)
+        assert rc.keypoint_folds_from_msg(kp) == (None if done is None else list(done))
+    for bad, words in ((["left_sleeve", "left_sleeve"], "twice"), (["fold_x"], "unknown folds"),
+                       (["left_side"], "lists itself")):
+        msg = rc.fold_spec_to_msg(rc.PlannedFold(spec, 0.6, 25.0))
+        msg.folds_known, msg.folds_done = True, bad
+        with pytest.raises(ValueError, match=words):
+            rc.fold_spec_from_msg(msg)
+    msg = rc.keypoints_to_msg(shirt.keypoints(), 5)
+    msg.folds = ["left_sleeve"]  # listed, but folds_known is false
+    with pytest.raises(ValueError, match="folds_known is false"):
+        rc.keypoint_folds_from_msg(msg)
+
+
 def test_cloth_state_round_trip_and_errors(shirt):
     v, tri = shirt.vertices + 0.001, shirt.triangles
     m = rc.cloth_state_to_msg(v, tri, shirt.keypoint_ids, 3e-4, 7, grasped=[1, 2])

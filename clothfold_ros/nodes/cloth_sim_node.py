@@ -83,6 +83,7 @@ class ClothSimNode(LockStepBackend):
         """Flat shirt, target = the flat shirt (the base of the first fold)."""
         self.sim = self.scene.simulator()
         self.target_base = self.flat.copy()
+        self.fold_specs: dict = {}  # fold name -> the FoldSpec of the last fold of that name started
         self.episode = None
         self.settle_pending = False
         self.publish_state(force=True)
@@ -125,11 +126,35 @@ class ClothSimNode(LockStepBackend):
             if plan.spec.n_grippers > self.n:
                 raise ValueError(f"fold {plan.spec.name} needs {plan.spec.n_grippers} grippers")
             settle = plan.settle_time if plan.settle_time > 0 else params.value(self, "settle_time")
-            target = fold_target(self.target_base, plan.spec, self.material.thickness)
+            target = fold_target(self.base_for(plan), plan.spec, self.material.thickness)
+            self.fold_specs[plan.spec.name] = plan.spec
             self.episode = FoldEpisode(self.sim, plan.spec, target, settle)
             self.get_logger().info(f"fold {plan.spec.name} (stage {plan.stage}) starts at {self.ls.now_ns * 1e-9:.3f} s")
         ids = self.sim.grasp(gripper, pose)
         self.get_logger().info(f"gripper_{gripper} closed: {len(ids)} vertices held")
+
+    def base_for(self, plan) -> np.ndarray:
+        """The target a fold's target composes onto: the flat shirt with the folds its planner
+        assumed made (plan.folds_done, as this node started them), so the loss follows the
+        planner's history (keypoint_node's, where it adopted a failed fold the cloud shows);
+        without that list, or naming a fold this node never started, the target of the folds
+        whose simulation completed here."""
+        from ..loss import fold_target
+
+        done = plan.folds_done
+        if done is None:
+            return self.target_base
+        unseen = [n for n in done if n not in self.fold_specs]
+        if unseen:
+            self.get_logger().warn(f"fold {plan.spec.name} was planned after folds {list(done)}, but this node "
+                                   f"never simulated {unseen}: its target composes onto the folds completed here")
+            return self.target_base
+        base = self.flat.copy()
+        for n in done:
+            base = fold_target(base, self.fold_specs[n], self.material.thickness)
+        if not np.array_equal(base, self.target_base):
+            self.get_logger().info(f"fold {plan.spec.name}: target composed onto the planner's folds {list(done)}")
+        return base
 
     def on_step(self, targets: dict[int, Pose]) -> None:
         ep = self.episode

@@ -130,20 +130,25 @@ def keypoints_to_msg(keypoints: Mapping[str, Sequence[float]], stamp_ns: int,
                      folds_known=folds is not None, folds=list(folds or []))
 
 
+def fold_names(known: bool, folds: list[str], what: str, field_name: str) -> list[str] | None:
+    """A message's list of fold names (None when `known` is false); ValueError on an unknown or
+    repeated name, or names listed while `known` is false."""
+    if not known:
+        if folds:
+            raise ValueError(f"{what} lists {field_name} {folds} but folds_known is false")
+        return None
+    unknown = [f for f in folds if f not in FOLD_NAMES]
+    if unknown:
+        raise ValueError(f"{what} lists unknown folds {unknown} in {field_name}; known folds: {', '.join(FOLD_NAMES)}")
+    if len(set(folds)) != len(folds):
+        raise ValueError(f"{what} lists a fold twice in {field_name}: {folds}")
+    return folds
+
+
 def keypoint_folds_from_msg(m: Keypoints) -> list[str] | None:
     """The folds a Keypoints message says its keypoints follow (None: not tracked); ValueError
     on an unknown or repeated fold name."""
-    if not m.folds_known:
-        if len(m.folds):
-            raise ValueError(f"keypoints message lists folds {list(m.folds)} but folds_known is false")
-        return None
-    folds = list(m.folds)
-    unknown = [f for f in folds if f not in FOLD_NAMES]
-    if unknown:
-        raise ValueError(f"keypoints message lists unknown folds {unknown}; known folds: {', '.join(FOLD_NAMES)}")
-    if len(set(folds)) != len(folds):
-        raise ValueError(f"keypoints message lists a fold twice: {folds}")
-    return folds
+    return fold_names(m.folds_known, list(m.folds), "keypoints message", "folds")
 
 
 def check_table_frame(header, what: str) -> None:
@@ -180,6 +185,7 @@ class PlannedFold(FoldPlan):
 
     stamp_ns: int = 0
     extra: dict = field(default_factory=dict)
+    folds_done: tuple[str, ...] | None = None  # the folds the plan assumes made before it (None: not given)
 
 
 def fold_spec_to_msg(fold: PlannedFold, frame_id: str = TABLE_FRAME) -> FoldSpecMsg:
@@ -190,7 +196,8 @@ def fold_spec_to_msg(fold: PlannedFold, frame_id: str = TABLE_FRAME) -> FoldSpec
         start_poses=[pose_to_msg(p) for p in s.start_poses], end_poses=[pose_to_msg(p) for p in s.end_poses],
         tilt_signs=[float(x) for x in s.tilt_signs], height_ratio=float(fold.height_ratio),
         tilt_deg=float(fold.tilt_deg), duration=float(fold.duration), settle_time=float(fold.settle_time),
-        layer_offset_factor=float(s.layer_offset_factor))
+        layer_offset_factor=float(s.layer_offset_factor), folds_known=fold.folds_done is not None,
+        folds_done=list(fold.folds_done or ()))
 
 
 def fold_spec_from_msg(m: FoldSpecMsg) -> PlannedFold:
@@ -213,8 +220,12 @@ def fold_spec_from_msg(m: FoldSpecMsg) -> PlannedFold:
     spec = FoldSpec(m.fold_name, point_from_msg(m.line_point, "fold line point"),
                     point_from_msg(m.line_direction, "fold line direction"), starts, ends, tuple(signs.tolist()),
                     float(m.layer_offset_factor))
+    done = fold_names(m.folds_known, list(m.folds_done), "fold spec", "folds_done")
+    if done is not None and m.fold_name in done:
+        raise ValueError(f"fold spec {m.fold_name!r} lists itself among the folds made before it: {done}")
     return PlannedFold(spec, float(m.height_ratio), float(m.tilt_deg), float(m.duration), float(m.settle_time),
-                       int(m.stage), stamp_ns(m.header, "fold spec"))
+                       int(m.stage), stamp_ns(m.header, "fold spec"),
+                       folds_done=None if done is None else tuple(done))
 
 
 # -- cloth mesh ---------------------------------------------------------------------------------

@@ -224,7 +224,7 @@ class FoldPlannerNode(Node):
         self.get_logger().info(f"{name}: h={h:g}, tilt={tilt:g} deg ({note}); keypoints stamped {stamp * 1e-9:.3f} s")
         return rc.fold_spec_to_msg(rc.PlannedFold(spec, h, tilt, params.value(self, "duration"),
                                                   params.value(self, "settle_time"), FOLD_SEQUENCE.index(name),
-                                                  self.get_clock().now().nanoseconds))
+                                                  self.get_clock().now().nanoseconds, folds_done=tuple(done)))
 
     def flat_length(self, kp: dict, done: list[str], name: str) -> float | None:
         """The flat shirt's body length (m): measured on kp while no fold is done, else the one
