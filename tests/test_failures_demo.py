@@ -1,6 +1,6 @@
 """`clothfold demo --backend kinematic` as a user runs it (a subprocess): SIGTERM or SIGINT in the
 middle of the fold stops every process it started and closes the bag; a backend killed mid-fold
-ends the demo at once with a failure (not after its 900 s timeout)."""
+ends the demo at once with a failure (not after its 900 s timeout), showing the nodes' last lines."""
 from __future__ import annotations
 
 import os
@@ -29,10 +29,10 @@ def _alive(pid: int) -> bool:
 class Demo:
     """The demo as a subprocess; its output lines collected by a thread."""
 
-    def __init__(self, tmp_path, name: str) -> None:
+    def __init__(self, tmp_path, name: str, *extra: str) -> None:
         self.bag = tmp_path / f"{name}.mcap"
         cmd = [sys.executable, "-c", "import sys; from clothfold_ros.cli import main; sys.exit(main())", "demo",
-               "--backend", "kinematic", "--domain-id", str(DOMAIN), "--bags", str(tmp_path), "--name", name]
+               "--backend", "kinematic", "--domain-id", str(DOMAIN), "--bags", str(tmp_path), "--name", name, *extra]
         self.p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                   start_new_session=True)
         self.lines: list[str] = []
@@ -93,7 +93,8 @@ def test_signal_stops_every_process_and_closes_the_bag(tmp_path, sig):
 
 
 def test_killed_backend_ends_the_demo_promptly(tmp_path):
-    demo = Demo(tmp_path, "killed")
+    """--quiet hides the nodes' output; on an error the demo then shows each node's last lines."""
+    demo = Demo(tmp_path, "killed", "--quiet")
     demo.wait_line(r"\[demo\] stage 0: executing")
     pids = demo.pids()
     os.killpg(pids["kinematic_robot_node"], signal.SIGKILL)
@@ -101,4 +102,5 @@ def test_killed_backend_ends_the_demo_promptly(tmp_path):
     out = "\n".join(demo.lines)
     assert code == 1, out[-3000:]
     assert "kinematic_robot_node" in out and "process exited" in out, out[-3000:]
+    assert re.search(r"^\[demo\]   trajectory_node: .*\S", out, re.M), out[-3000:]
     assert not [n for n, pid in pids.items() if _alive(pid)], out[-3000:]

@@ -157,6 +157,10 @@ def run(args: argparse.Namespace) -> int:
         code = 0 if losses and all(ok for _, ok, _, _ in losses) and len(losses) == len(folds) else 1
     except (RuntimeError, TimeoutError) as err:
         print(f"[demo] error: {err}", file=sys.stderr, flush=True)
+        if args.quiet:  # the nodes' output was not shown: their last lines say what each was doing
+            for p in launcher.procs:
+                for line in p.lines[-4:]:
+                    print(f"[demo]   {p.name}: {line}", file=sys.stderr, flush=True)
     except KeyboardInterrupt as sig:
         print(f"[demo] interrupted ({sig or 'SIGINT'}): stopping every process", file=sys.stderr, flush=True)
         code = 130
