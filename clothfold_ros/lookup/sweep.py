@@ -20,9 +20,7 @@ import numpy as np
 from ..folding import fold_spec
 from ..garment import Garment
 from ..loss import fold_target
-from ..materials import material
 from ..sim import runner  # runner.run_fold looked up per call (tests patch it)
-from ..sim.runner import flat_start
 from ..sim.scene import Scene, SceneSettings, build_scene
 from ..trajectory import fan
 from . import sweep_dir as layout
@@ -121,7 +119,7 @@ def prepare_start(settings: SweepSettings, sweep_dir: Path, previous_dir: Path |
         if best is None:
             raise ValueError(f"scenario {sc.after!r} has no successful run to start {sc.name!r} from")
         x = layout.load_final(previous_dir, int(best["point"])).astype(float)
-        path = layout.write_start(sweep_dir, x, stage_target(previous_dir, garment))
+        path = layout.write_start(sweep_dir, x, stage_target(previous_dir))
         info.update(start_from=sc.after, start_point=int(best["point"]), start_loss_m=best["loss_m"])
     info["spec_note"], info["features"] = _start_info(sc.name, garment, flat, x, settings.end_angle_deg)
     return path, info
@@ -165,13 +163,14 @@ def refresh_features(d: str | Path) -> dict[str, float]:
     return info["features"]
 
 
-def stage_target(d: str | Path, garment: Garment) -> np.ndarray:
+def stage_target(d: str | Path, scene: Scene | None = None) -> np.ndarray:
     """The composed target (N, 3) m after the folds of the stage swept in `d`
-    (recomputed from its start state and the fold specs)."""
+    (recomputed from its start state and the fold specs) in the sweep's scene (built from
+    the settings in `d` when not given)."""
     settings = layout.read_settings(d)
     sc = scenario(settings.scenario)
-    mat = material(sc.material)
-    flat = flat_start(garment, mat)
+    scene = _scene(settings) if scene is None else scene
+    garment, mat, flat = scene.garment, scene.material, scene.flat
     start = layout.start_file(d)
     x, base = read_start(start) if start else (flat, flat)
     kp = garment.keypoints(x)
@@ -208,7 +207,7 @@ def finish(d: str | Path, command: str, points: list[int]) -> Path:
     table = write_table(d, command, points)
     start = layout.start_file(d)
     x = read_start(start)[0] if start else flat
-    layout.pack_finals(d, garment.triangles, x, stage_target(d, garment),
+    layout.pack_finals(d, garment.triangles, x, stage_target(d, scene),
                        [int(r["point"]) for r in layout.read_runs(d)])
     return table
 
