@@ -54,6 +54,7 @@ from . import common, params
 from .params import Param
 
 OUTLINE_TOPIC = "/keypoints/outline"
+FLAT_AGAIN_AREA = 0.9  # a flat fit of a folded shirt's cloud is taken as the shirt laid flat again from this share of the first flat area
 STALE_AFTER = 30.0  # s past a fold's end without its result: the fold is no longer taken as executing
 POINTS_QOS = {"latched": common.LATCHED, "sensor_data": qos_profile_sensor_data}
 
@@ -127,6 +128,7 @@ class KeypointNode(Node):
         self.given_up = None  # the last fold taken as over without its result (PlannedFold)
         self.failed = None  # a fold that failed: the cloth may or may not be folded by it
         self.prior = None  # the last good estimate (source = points)
+        self.flat_area: float | None = None  # m^2, the flat shirt first fitted (source = points)
         self.skipped = None  # (callback, msg) of the last cloth message skipped while a fold ran
         self.published_ns = -1  # stamp of the newest keypoints published: an older cloth message is stale
         self._garment = None
@@ -212,6 +214,7 @@ class KeypointNode(Node):
 
     def on_reset(self, _req, resp):
         self.folds, self.failed, self.prior, self.active, self.given_up = [], None, None, None, None
+        self.flat_area = None
         resp.success, resp.message = True, "fold history cleared: the cloth is taken to be flat"
         self.get_logger().info(resp.message)
         return resp
@@ -264,7 +267,7 @@ class KeypointNode(Node):
 
     # -- source = points ------------------------------------------------------------------------------
     def on_points(self, msg: PointCloud2) -> None:
-        from ..perception.estimator import PerceptionError, PoorFitError, estimate_keypoints
+        from ..perception.estimator import PerceptionError, PoorFitError, estimate_keypoints, flat_area
 
         try:
             stamp = rc.stamp_ns(msg.header, "cloud")
@@ -281,6 +284,8 @@ class KeypointNode(Node):
                                  f"{params.value(self, 'points_frame')!r}")
             pts = cloud_from_msg(msg) @ self.rotation.T + self.translation
             candidates = [(self.fold_names(), self.prior)]
+            if self.prior is not None:  # the cloth moved far from the last estimate: a fresh start
+                candidates.append((self.fold_names(), None))
             if self.failed is not None:
                 candidates.append((self.fold_names(self.failed), self.prior))
             if self.folds:
@@ -291,6 +296,11 @@ class KeypointNode(Node):
                     est = estimate_keypoints(pts, folds=names, prior=prior, config=self.config)
                 except PoorFitError as err:
                     last_err = err
+                    continue
+                except ValueError as err:  # e.g. a fitted shape that is no shirt's: this candidate fails
+                    last_err = last_err or err
+                    continue
+                if not names and self.folds and not self.flat_again(est):
                     continue
                 if best is None or est.residual < best[1].residual:
                     best = (names, est)
@@ -316,6 +326,8 @@ class KeypointNode(Node):
             self.folds = (self.folds + [self.failed]) if len(names) > len(self.folds) else []
         self.failed = None
         self.prior = est
+        if not names and self.flat_area is None:
+            self.flat_area = flat_area(est.shape)
         self.published_ns = stamp
         self.pub.publish(rc.keypoints_to_msg(est.keypoints, stamp, folds=names))
         self.outline_pub.publish(self.outline_marker(est.segments, stamp))
@@ -323,6 +335,22 @@ class KeypointNode(Node):
         if self.count == 1 or self.count % 20 == 0:
             self.get_logger().info(f"keypoints from {est.n_points} cloud points, folds {names}: residual "
                                    f"{est.residual * 1e3:.1f} mm, {est.seconds * 1e3:.0f} ms CPU ({self.count} so far)")
+
+    def flat_again(self, est) -> bool:
+        """Whether a flat-shirt fit `est` of a cloud taken while folds are done shows the shirt
+        laid flat again: its flat shirt at least FLAT_AGAIN_AREA of the one first fitted. A free
+        flat fit of a poorly fitting folded shirt finds a smaller shirt (after two sleeve folds
+        and a side fold in the demo: planned from it, the next fold failed at 161 mm)."""
+        from ..perception.estimator import flat_area
+
+        if self.flat_area is None:
+            return True  # never seen flat: nothing to compare with
+        ratio = flat_area(est.shape) / self.flat_area
+        if ratio >= FLAT_AGAIN_AREA:
+            return True
+        self.get_logger().warn(f"the cloud fits a flat shirt of {ratio:.0%} the area of the one first seen: not "
+                               f"taken as the shirt laid flat again (folds {self.fold_names()})")
+        return False
 
     def outline_marker(self, segments: np.ndarray, stamp: int, rejected: bool = False) -> Marker:
         """LINE_LIST of the fitted model outline (segments (S, 2, 2) m, table frame) at z = 1 cm."""

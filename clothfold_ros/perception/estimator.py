@@ -268,6 +268,13 @@ def model_outline(shape_values: np.ndarray) -> np.ndarray:
     return (_outline_unit(s) - np.array([0.0, 0.5])) * s.scale
 
 
+def flat_area(shape: ShirtShape) -> float:
+    """Area (m^2) of the flat shirt of a fitted shape (its 13-corner outline)."""
+    o = model_outline(np.array([getattr(shape, f) for f in SHAPE_FIELDS], dtype=float))
+    x, y = o[:, 0], o[:, 1]
+    return float(abs(x @ np.roll(y, -1) - y @ np.roll(x, -1)) / 2)
+
+
 def _rot(yaw: float) -> np.ndarray:
     c, s = math.cos(yaw), math.sin(yaw)
     return np.array([[c, -s], [s, c]])
