@@ -8,6 +8,7 @@ gives the composed target of a fold sequence.
 from __future__ import annotations
 
 import math
+from typing import Sequence
 
 import numpy as np
 
@@ -28,6 +29,14 @@ def mirror_across_line(points: np.ndarray, spec: FoldSpec) -> np.ndarray:
     """Points (N, 3) reflected across the vertical plane through the fold line (z kept)."""
     p = _vertices(points, "points")
     return p - 2.0 * spec.side_of_line(p)[:, None] * spec.normal
+
+
+def composed_target(flat: np.ndarray, specs: Sequence[FoldSpec], thickness: float) -> np.ndarray:
+    """Target (N, 3) m after the folds `specs`, in order, of the flat vertices (N, 3)."""
+    out = _vertices(flat).copy()
+    for spec in specs:
+        out = fold_target(out, spec, thickness)
+    return out
 
 
 def fold_target(vertices: np.ndarray, spec: FoldSpec, thickness: float) -> np.ndarray:

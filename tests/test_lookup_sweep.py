@@ -449,3 +449,8 @@ def test_a_sweep_runs_nicer_than_the_nodes_and_tests() -> None:
             f"r({n0}); b = os.nice(0)\ntry:\n    r(25)\nexcept ValueError as e:\n    print(a, b, e)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == f"{n0 + 2} {n0 + 2} --nice must be 0..19, got 25"
+    from clothfold_ros.cli import main
+
+    with pytest.raises(SystemExit) as exit_:  # refused when parsed, whatever the mode
+        main(["sweep", "T1", "--nice", "25", "--table-only"])
+    assert exit_.value.code == 2

@@ -39,3 +39,20 @@ def test_the_start_lead_uses_the_clock_s_fastest_pace():
     assert fastest_pace(stalled[:3]) == pytest.approx(1 * s)  # shorter than a span: over all of them
     assert fastest_pace(stalled[:1]) == 0.0
     assert fastest_pace([(0.0, 0), (0.3, 0), (0.6, 0)]) == 0.0
+
+
+def test_clock_samples_skip_a_clock_at_zero_and_restart_when_it_goes_back():
+    """Samples taken before the first /clock (0) would make its jump to T look like a pace of
+    T per sample interval; a clock that goes back (a replay loops) starts a new window."""
+    from collections import deque
+    from types import SimpleNamespace
+
+    from clothfold_ros.nodes.trajectory_node import TrajectoryNode
+
+    readings = iter([0, 0, 100 * 10**9, 100 * 10**9 + 10**8, 5 * 10**9])
+    node = SimpleNamespace(_clock_samples=deque(), now_ns=lambda: next(readings))
+    for _ in range(4):
+        TrajectoryNode._sample_clock(node)
+    assert [c for _, c in node._clock_samples] == [100 * 10**9, 100 * 10**9 + 10**8]
+    TrajectoryNode._sample_clock(node)
+    assert [c for _, c in node._clock_samples] == [5 * 10**9]

@@ -124,14 +124,40 @@ def test_the_folds_the_keypoints_follow_are_the_history_planned_with(monkeypatch
             node.on_result(FoldResult(header=rc.header((2 + k) * S), fold_name=name, success=False, reason="x"))
         node.on_keypoints(rc.keypoints_to_msg(visible_keypoints(g, v, specs), 10 * S, folds=FOLD_SEQUENCE[:4]))
         msg = node.plan("middle")  # planned on the hem the cloth shows: the study's middle fold
+        assert msg.folds_known and list(msg.folds_done) == list(FOLD_SEQUENCE[:4])  # what cloth_sim_node composes
         assert study.side_of_line(np.array([msg.line_point.x, msg.line_point.y, 0.0])) == pytest.approx(0, abs=1e-6)
         for a, b in zip(study.start_poses, msg.start_poses):
             assert np.hypot(a.position[0] - b.position.x, a.position[1] - b.position.y) < 1e-6
-        with pytest.raises(ValueError, match=r"follow folds \[left_sleeve, .*left_side is done already"):
+        with pytest.raises(ValueError, match=r"folds made are \[left_sleeve, .*left_side is done already"):
             node.plan("left_side")
         bad = rc.keypoints_to_msg(g.keypoints(), 11 * S, folds=["left_sleeve", "no_such_fold"])
         node.on_keypoints(bad)  # ignored: the last good keypoints stay
         assert node.keypoints_stamp == 10 * S and node.keypoint_folds == list(FOLD_SEQUENCE[:4])
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+def test_keypoints_older_than_the_last_result_do_not_bring_their_folds(monkeypatch):
+    """Planned from keypoints that predate the last result (fresh_keypoints_wait over), the
+    history is the fold results', not the keypoints' older list: no fold planned twice, and
+    the plan tells the sim the sleeve is made."""
+    from clothfold_ros.nodes.fold_planner_node import FoldPlannerNode
+
+    g = make_shirt(1, max_area=5e-3)
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-p", "selection:=parameter", "-p", "fresh_keypoints_wait:=0.0"], context=ctx,
+               domain_id=188)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+    try:
+        node = FoldPlannerNode()
+        node.on_keypoints(rc.keypoints_to_msg(g.keypoints(), 1 * S, folds=[]))
+        node.on_result(FoldResult(header=rc.header(2 * S), fold_name="left_sleeve", success=True, loss=0.004))
+        with pytest.raises(ValueError, match=r"folds made are \[left_sleeve\]: left_sleeve is done already"):
+            node.plan("left_sleeve")
+        msg = node.plan("right_sleeve")
+        assert msg.folds_known and list(msg.folds_done) == ["left_sleeve"]
         node.destroy_node()
     finally:
         rclpy.shutdown(context=ctx)

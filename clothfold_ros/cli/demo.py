@@ -189,7 +189,8 @@ def run(args: argparse.Namespace) -> int:
 
 class StagePictures:
     """One top-down PNG per executed stage: the cloth as /cloth/state reports it after the
-    fold, beside the composed target (flat shirt with every planned fold applied)."""
+    fold, beside the composed target (the flat shirt with the folds the plan assumed made, as
+    cloth_sim_node composes it, and the fold)."""
 
     def __init__(self, client, stem: Path) -> None:
         from ..nodes.conversions import cloth_state_from_msg
@@ -199,22 +200,28 @@ class StagePictures:
         state = cloth_state_from_msg(client.wait_state(60))
         self.triangles = state.triangles
         self.thickness = state.thickness
-        self.target = state.vertices.copy()  # the flat shirt: the base of the first fold
-        self.spec = None
+        self.flat = state.vertices.copy()
+        self.target = self.flat  # the base of the first fold
+        self.spec, self.done, self.specs = None, None, {}
 
     def planned(self, spec_msg) -> None:
         from ..nodes.conversions import fold_spec_from_msg
 
-        self.spec = fold_spec_from_msg(spec_msg).spec
+        plan = fold_spec_from_msg(spec_msg)
+        self.spec, self.done = plan.spec, plan.folds_done
 
     def finished(self, stage: int, fold: str, res) -> Path | None:
-        from ..loss import fold_target
+        from ..loss import composed_target, fold_target
         from ..nodes.conversions import cloth_state_from_msg, time_to_ns
         from ..sim.report import plot_top_down
 
         if self.spec is None:
             return None
-        self.target = fold_target(self.target, self.spec, self.thickness)
+        base = self.target
+        if self.done is not None and all(n in self.specs for n in self.done):
+            base = composed_target(self.flat, [self.specs[n] for n in self.done], self.thickness)
+        self.target = fold_target(base, self.spec, self.thickness)
+        self.specs[self.spec.name] = self.spec
         try:
             state = cloth_state_from_msg(self.client.wait_state(30, newer_than_ns=time_to_ns(res.header.stamp) - 1))
         except TimeoutError:

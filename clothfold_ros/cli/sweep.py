@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=int, default=None, help="local processes (default: number of cores)")
     p.add_argument("--ray", default=None, metavar="ADDRESS",
                    help="run on Ray: a cluster address, 'auto', or 'local' (a private single-node Ray here)")
-    p.add_argument("--nice", type=int, default=10,
+    p.add_argument("--nice", type=_niceness, default=10,
                    help="run the local workers at least this nice (default 10: hours of background CPU yield to "
                    "the nodes, tests and a user's commands on the same cores; 0 = as started)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -40,6 +40,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="simulate nothing: write the (partial) table of the runs done so far; its provenance "
                    "lists the missing points")
     p.set_defaults(func=run)
+
+
+def _niceness(text: str) -> int:
+    """argparse type of --nice: an integer 0..19."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 0 <= value <= 19:
+        raise argparse.ArgumentTypeError(f"must be 0..19, got {value}")
+    return value
 
 
 def raise_niceness(nice: int) -> None:

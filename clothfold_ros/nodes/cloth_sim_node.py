@@ -139,7 +139,7 @@ class ClothSimNode(LockStepBackend):
         planner's history (keypoint_node's, where it adopted a failed fold the cloud shows);
         without that list, or naming a fold this node never started, the target of the folds
         whose simulation completed here."""
-        from ..loss import fold_target
+        from ..loss import composed_target
 
         done = plan.folds_done
         if done is None:
@@ -149,9 +149,7 @@ class ClothSimNode(LockStepBackend):
             self.get_logger().warn(f"fold {plan.spec.name} was planned after folds {list(done)}, but this node "
                                    f"never simulated {unseen}: its target composes onto the folds completed here")
             return self.target_base
-        base = self.flat.copy()
-        for n in done:
-            base = fold_target(base, self.fold_specs[n], self.material.thickness)
+        base = composed_target(self.flat, [self.fold_specs[n] for n in done], self.material.thickness)
         if not np.array_equal(base, self.target_base):
             self.get_logger().info(f"fold {plan.spec.name}: target composed onto the planner's folds {list(done)}")
         return base

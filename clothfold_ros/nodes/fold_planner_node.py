@@ -126,7 +126,8 @@ class FoldPlannerNode(Node):
     def on_reset(self, _req, resp):
         with self.lock:
             self.folds_done, self.last_result_ns, self.flat_body_length = [], -1, None
-        resp.success, resp.message = True, "folds done forgotten (the shirt lies flat)"
+        resp.success, resp.message = True, ("folds done and the flat body length forgotten (the shirt lies flat); "
+                                            "keypoints that list folds still win: reset keypoint_node too")
         return resp
 
     # -- selection -----------------------------------------------------------------------------
@@ -205,19 +206,20 @@ class FoldPlannerNode(Node):
             waited = time.monotonic() - self.last_result_wall
         if kp is None:
             raise ValueError(f"no keypoints received on {common.KEYPOINTS} yet")
-        if seen is not None:  # one history: the folds the keypoints follow, as the keypoint source saw them
-            if seen != done:
-                self.get_logger().warn(f"the keypoints follow folds [{', '.join(seen)}], the fold results "
-                                       f"[{', '.join(done)}]: planning with the keypoints' folds")
-            done = seen
-        if name in done:
-            raise ValueError(f"the keypoints follow folds [{', '.join(done)}]: {name} is done already")
         if stamp < last:
             stale = (f"the newest keypoints are stamped {stamp * 1e-9:.3f} s, before the last fold result "
                      f"({last * 1e-9:.3f} s)")
             if waited < params.value(self, "fresh_keypoints_wait"):
                 raise ValueError(f"no keypoints of the cloth as it lies now: {stale}")
-            self.get_logger().warn(f"{stale}; none newer for {waited:.1f} s: planning from them")
+            self.get_logger().warn(f"{stale}; none newer for {waited:.1f} s: planning from them, with the "
+                                   "folds of the fold results (the keypoints' list predates the last result)")
+        elif seen is not None:  # one history: the folds the keypoints follow, as the keypoint source saw them
+            if seen != done:
+                self.get_logger().warn(f"the keypoints follow folds [{', '.join(seen)}], the fold results "
+                                       f"[{', '.join(done)}]: planning with the keypoints' folds")
+            done = seen
+        if name in done:
+            raise ValueError(f"the folds made are [{', '.join(done)}]: {name} is done already")
         length = self.flat_length(kp, done, name)
         h, tilt, end_angle, note = self.select(name, kp)
         spec = fold_spec(name, kp, end_angle, params.value(self, "end_height"), folds_done=done, body_length=length)
@@ -227,14 +229,12 @@ class FoldPlannerNode(Node):
                                                   self.get_clock().now().nanoseconds, folds_done=tuple(done)))
 
     def flat_length(self, kp: dict, done: list[str], name: str) -> float | None:
-        """The flat shirt's body length (m): measured on kp while no fold is done, else the one
-        measured then (None, with a warning for the middle fold, if the planner never saw it flat)."""
-        if not done:
-            length = body_length(kp)
-            with self.lock:
-                self.flat_body_length = length
-            return length
+        """The flat shirt's body length (m): the one measured the first time a fold was planned
+        with no fold done (since the start or ~/reset; a later "flat" history may come from a
+        partly folded cloth), else None, with a warning for the middle fold."""
         with self.lock:
+            if not done and self.flat_body_length is None:
+                self.flat_body_length = body_length(kp)
             length = self.flat_body_length
         if length is None and fold_type(name) == "middle":
             self.get_logger().warn("the shirt was never seen flat (planner started or reset after a fold): the "

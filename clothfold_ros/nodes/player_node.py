@@ -89,7 +89,7 @@ class Player:
             except (ImportError, AttributeError, ValueError, BagError) as err:
                 self.stats.skipped[name] = f"type {info.type} is not installed ({err})"
                 continue
-            if info.type_hash and info.type_hash != installed:  # its bytes would not decode as the installed type
+            if info.type_hash and installed and info.type_hash != installed:  # its bytes would not decode as the installed type
                 self.stats.skipped[name] = (f"recorded with another definition of {info.type} (type hash "
                                             f"{info.type_hash}, installed {installed})")
                 continue

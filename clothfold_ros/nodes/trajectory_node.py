@@ -177,9 +177,14 @@ class TrajectoryNode(Node):
         return self.get_clock().now().nanoseconds
 
     def _sample_clock(self) -> None:
-        """10 Hz (steady clock): (wall s, node clock ns) samples of the last PACE_WINDOW s."""
-        now = time.monotonic()
-        self._clock_samples.append((now, self.now_ns()))
+        """10 Hz (steady clock): (wall s, node clock ns) samples of the last PACE_WINDOW s (none
+        while the clock reads 0; cleared when it goes back)."""
+        now, clock = time.monotonic(), self.now_ns()
+        if clock <= 0:
+            return  # no /clock yet: a later jump from 0 is no pace
+        if self._clock_samples and clock < self._clock_samples[-1][1]:
+            self._clock_samples.clear()  # the clock went back (a replay looped, a sim reset): a new clock
+        self._clock_samples.append((now, clock))
         while self._clock_samples and self._clock_samples[0][0] < now - PACE_WINDOW:
             self._clock_samples.popleft()
 
