@@ -9,6 +9,7 @@ import pytest
 from pipeline_helpers import FAST_KINEMATIC, running_pipeline
 
 DOMAIN = 183
+DOMAIN_ALONE = 190
 
 
 def test_fold_on_a_fifty_times_real_time_clock_starts_and_completes(monkeypatch):
@@ -56,3 +57,17 @@ def test_clock_samples_skip_a_clock_at_zero_and_restart_when_it_goes_back():
     assert [c for _, c in node._clock_samples] == [100 * 10**9, 100 * 10**9 + 10**8]
     TrajectoryNode._sample_clock(node)
     assert [c for _, c in node._clock_samples] == [5 * 10**9]
+
+
+def test_a_fold_is_not_started_before_the_backend_can_deliver_its_result(monkeypatch):
+    """/fold/result is volatile: the client waits for a matched result publisher before asking
+    for a fold, and says so when none comes (here: no backend on the domain at all)."""
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(DOMAIN_ALONE))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    from clothfold_ros.nodes.pipeline_client import PipelineClient
+
+    with PipelineClient("test_fold_start_alone") as client:
+        with pytest.raises(TimeoutError, match="/fold/result publisher"):
+            client.plan("left_sleeve", execute=True, timeout=1.0)
+        with pytest.raises(TimeoutError, match="/plan_fold not available"):
+            client.plan("left_sleeve", execute=False, timeout=1.0)

@@ -220,7 +220,7 @@ def test_a_replayed_mid_fold_state_never_replaces_newer_keypoints(monkeypatch):
     # use_sim_time without /clock: the node's clock reads 0, so the test's stamps alone decide (a fold
     # over by the node's clock would be taken as done at once)
     rclpy.init(args=["--ros-args", "-p", "source:=cloth_state", "-p", "max_area:=0.002", "-p", "use_sim_time:=true"],
-               context=ctx, domain_id=174)
+               context=ctx, domain_id=191)
     try:
         monkeypatch.setattr(rclpy.node.Node, "__init__", _with_context(rclpy.node.Node.__init__, ctx))
         node = KeypointNode()

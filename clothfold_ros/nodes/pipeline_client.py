@@ -35,7 +35,8 @@ class PipelineClient:
         self.cloth_state: ClothState | None = None
         self.results: list[FoldResult] = []
         self.node.create_subscription(Keypoints, common.KEYPOINTS, self._on_keypoints, common.LATCHED)
-        self.node.create_subscription(FoldResult, common.FOLD_RESULT, self._on_result, common.RESULTS)
+        self.result_sub = self.node.create_subscription(FoldResult, common.FOLD_RESULT, self._on_result,
+                                                        common.RESULTS)
         self.node.create_subscription(ClothState, common.CLOTH_STATE, self._on_state, common.LATCHED)
         self.clock_messages = 0
         self.node.create_subscription(Clock, common.CLOCK, self._on_clock, 10)
@@ -102,6 +103,8 @@ class PipelineClient:
         a goal refused by trajectory_node (e.g. still finishing the previous fold) is
         retried for retry_refused seconds."""
         deadline = time.monotonic() + timeout
+        if execute:
+            self.wait_result_publisher(timeout)
         refused_until = time.monotonic() + retry_refused
         while True:
             resp = self._plan_once(fold_name, execute, max(0.1, deadline - time.monotonic()))
@@ -111,6 +114,14 @@ class PipelineClient:
             if resp.success or not retry:
                 return resp
             time.sleep(0.2)
+
+    def wait_result_publisher(self, timeout: float) -> None:
+        """Wait until a /fold/result publisher (the backend) has matched this client's
+        subscription; TimeoutError otherwise. /fold/result is volatile: a fold that ends before
+        discovery pairs the backend with this client is a result lost (a kinematic backend at
+        50x real time ends a fold within a second of the plan call)."""
+        if not wait_until(self.cond, lambda: self.result_sub.get_publisher_count() > 0 or None, timeout, poll=0.05):
+            raise TimeoutError(f"no {common.FOLD_RESULT} publisher (the backend) matched within {timeout:g} s")
 
     def _plan_once(self, fold_name: str, execute: bool, timeout: float) -> PlanFold.Response:
         if not self.plan_client.wait_for_service(timeout_sec=timeout):
@@ -126,6 +137,7 @@ class PipelineClient:
 
     def start_goal(self, spec: FoldSpecMsg, timeout: float = 30.0):
         """Send an ExecuteFold goal straight to trajectory_node; its goal handle (accepted or not)."""
+        self.wait_result_publisher(timeout)
         if not self.execute_client.wait_for_server(timeout_sec=timeout):
             raise TimeoutError(f"{common.EXECUTE_FOLD} not available within {timeout:g} s")
         future = self.execute_client.send_goal_async(ExecuteFold.Goal(spec=spec))
