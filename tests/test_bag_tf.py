@@ -109,7 +109,7 @@ def test_recorded_fold_has_gripper_markers_and_frames(pipeline, tmp_path):
     rec = launcher.start("recorder_node", node_command("recorder_node", args=["--output", str(bag)]))
     launcher.wait_for(rec, r"recording to", 60)
     for topic in ("/gripper_0/pose", "/gripper_0/marker", "/gripper_0/target_pose", "/fold/result"):
-        launcher.wait_for(rec, f"recording {topic} ", 30)
+        launcher.wait_for(rec, f"matched {topic} ", 30)
     client.wait_keypoints(60)
     before = client.result_count()
     resp = client.plan("left_sleeve", execute=True)

@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
             kp = client.wait_keypoints(120)
             pictures = StagePictures(client, bag.with_suffix("")) if args.backend == "sim" else None
             for topic in ("/gripper_0/target_pose", "/fold/result"):  # record the fold from its start
-                launcher.wait_for(recorder, f"recording {topic} ", 60)
+                launcher.wait_for(recorder, f"matched {topic} ", 60)
             for stage, fold in enumerate(folds):
                 launcher.check_alive()
                 before = client.result_count()

@@ -5,7 +5,8 @@ Usage: ``recorder_node --output PATH [--topics T1 T2 ...] [--exclude REGEX] [--i
 discovered every ``--discovery-period`` s. Each topic is subscribed with ``raw=True`` and
 a QoS compatible with its publishers (transient_local when all of them offer it, best
 effort when any is best effort); the publishers' offered QoS and type hash are stored.
-Prints ``recording to PATH`` (flushed) once ready and ``bag closed: PATH (N messages)``
+Prints ``recording to PATH`` (flushed) once ready, logs ``matched TOPIC`` once a topic's
+subscription has matched a publisher (wait for it before sending what must be recorded), and ``bag closed: PATH (N messages)``
 after SIGINT/SIGTERM; a SIGKILL loses at most the last ~``--chunk-age`` s (see
 ``clothfold bag recover``). Topics that cannot be recorded are listed, never dropped silently.
 
@@ -73,6 +74,7 @@ class RecorderNode(Node):
         self.include_hidden = include_hidden
         self.writer = BagWriter(output, overwrite=True, max_chunk_age=chunk_age)
         self.subs: dict[str, Any] = {}
+        self.matched: set[str] = set()  # topics whose subscription has matched a publisher (logged once)
         self.skipped: dict[str, str] = {}  # topic -> reason it is not recorded
         self.tf = tf and self._selected(TF_TOPIC)
         self._tf_warned: set[str] = set()
@@ -92,7 +94,10 @@ class RecorderNode(Node):
         return not (self.exclude and self.exclude.search(topic))
 
     def discover(self) -> None:
-        """Subscribe to every selected topic that has publishers and is not handled yet."""
+        """Subscribe to every selected topic that has publishers and is not handled yet; log
+        `matched TOPIC` once a subscription has matched a publisher (from then on, what that
+        publisher sends is recorded: callers that must not miss a message wait for this line)."""
+        self._report_matches()
         for topic, types in self.get_topic_names_and_types():
             if topic in self.subs or topic in self.skipped or not self._selected(topic):
                 continue
@@ -115,6 +120,13 @@ class RecorderNode(Node):
                 cls, topic, lambda data, info, t=topic, ty=types[0]: self._on_message(t, ty, data, info),
                 subscription_qos(offers), raw=True)
             self.get_logger().info(f"recording {topic} ({types[0]})")
+        self._report_matches()
+
+    def _report_matches(self) -> None:
+        for topic, sub in self.subs.items():
+            if topic not in self.matched and (n := sub.get_publisher_count()) > 0:
+                self.matched.add(topic)
+                self.get_logger().info(f"matched {topic} ({n} publisher(s))")
 
     def _skip(self, topic: str, reason: str) -> None:
         self.skipped[topic] = reason
