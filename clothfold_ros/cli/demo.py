@@ -146,8 +146,9 @@ def run(args: argparse.Namespace) -> int:
                 if not res.success:
                     print(f"[demo] stopping the sequence: {fold} failed", flush=True)
                     break
-                if stage + 1 < len(folds) and args.backend == "sim":
-                    # the next stage is planned from the keypoints of the cloth as it is now
+                if stage + 1 < len(folds):
+                    # the next stage is planned from the keypoints of the cloth as it is now (the
+                    # planner refuses keypoints stamped before the last result)
                     try:
                         kp = client.wait_keypoints(60, newer_than_ns=time_to_ns(res.header.stamp) - 1)
                     except TimeoutError:
