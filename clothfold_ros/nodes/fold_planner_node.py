@@ -127,7 +127,8 @@ class FoldPlannerNode(Node):
         with self.lock:
             self.folds_done, self.last_result_ns, self.flat_body_length = [], -1, None
         resp.success, resp.message = True, ("folds done and the flat body length forgotten (the shirt lies flat); "
-                                            "keypoints that list folds still win: reset keypoint_node too")
+                                            "keypoints that list folds still win: reset keypoint_node too (clothfold reset "
+                                            "resets cloth, keypoints and planner in order)")
         return resp
 
     # -- selection -----------------------------------------------------------------------------
