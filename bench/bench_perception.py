@@ -14,6 +14,10 @@ rotated by up to --max-rot deg and shifted by up to --max-offset m; the camera
 - time per estimate (process CPU time, one thread) for a cloud of about --points points;
 - --simulated: the sequence folded by the IPC simulator (as far as it gets), each
   simulated state's estimate against its visible keypoints;
+- --off-plan: capture range of the fold lines: shape 1 folded ideally, every stage as
+  planned except one whose line lies -50..50 mm along its normal (toward the grippers) from
+  the planned one; that stage's estimate (prior: the previous one) against its visible
+  keypoints, and the fitted line's offset from the true one;
 - --pipeline: `clothfold demo`'s fold (sim backend) with keypoints from the point cloud and
   from the cloth state (ground truth), loss of each.
 
@@ -49,6 +53,7 @@ RANGES = {  # docs/method.md section 1: plausible ranges (shoulder_height: aroun
     "sleeve_length": (0.05, 1.0), "sleeve_angle_deg": (-10.0, 60.0),
 }
 THICKNESS = 3.18e-4  # m, cotton
+OFF_PLAN_SHIFTS_MM = (-50, -40, -30, -20, -10, 0, 10, 20, 30, 40, 50)
 
 
 def random_shirts(n: int, rng: np.random.Generator) -> list[ShirtShape]:
@@ -157,6 +162,39 @@ def bench_folded(args, cam, rng) -> None:
         print(f"\nfolded, all stages: median {np.median(e):.1f} mm, p95 {np.percentile(e, 95):.1f} mm")
 
 
+def bench_off_plan(args, cam) -> None:
+    import dataclasses
+
+    print("\n## folds off their plan (shape 1): keypoint error median / max (mm), fitted line - true line (mm)")
+    print(f"{'fold':13s}" + "".join(f"{d:>12.0f}" for d in OFF_PLAN_SHIFTS_MM))
+    for stage in FOLD_SEQUENCE:
+        cells = []
+        for shift_mm in OFF_PLAN_SHIFTS_MM:
+            rng = np.random.default_rng(args.seed)
+            g = make_shirt(1, max_area=args.max_area)
+            v, specs = g.vertices.copy(), []
+            prior = estimate_keypoints(cam.cloud(v, g.triangles, rng))
+            cell = "-"
+            for name in FOLD_SEQUENCE[:FOLD_SEQUENCE.index(stage) + 1]:
+                spec = fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs])
+                if name == stage:
+                    spec = dataclasses.replace(spec, line_point=spec.line_point + shift_mm * 1e-3 * spec.normal)
+                specs.append(spec)
+                v = fold_target(v, spec, THICKNESS)
+                try:
+                    prior = estimate_keypoints(cam.cloud(v, g.triangles, rng), folds=[s.name for s in specs],
+                                               prior=prior)
+                except PerceptionError as err:
+                    cell = type(err).__name__
+                    break
+            else:
+                e = errors_mm(prior.keypoints, visible_keypoints(g, v, specs))
+                off = np.dot(prior.folds[-1].point - specs[-1].line_point[:2], specs[-1].normal[:2]) * 1e3
+                cell = f"{np.median(e):.0f}/{e.max():.0f} {off:+.0f}"
+            cells.append(cell)
+        print(f"{stage:13s}" + "".join(f"{c:>12s}" for c in cells), flush=True)
+
+
 def bench_simulated(args, rng) -> None:
     """The sequence on the IPC simulator (shape 1, cotton, mu 0.5, (h, tilt) = (0.723, 30),
     args.sim_area), each stage planned from the simulated state's visible keypoints, until a
@@ -243,6 +281,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--folded", action="store_true", help="also the folded states of the sequence")
     p.add_argument("--points", type=int, default=20000, help="cloud size for the timing")
     p.add_argument("--repeat", type=int, default=10)
+    p.add_argument("--off-plan", action="store_true", help="also folds whose line lies off the planned one")
     p.add_argument("--pipeline", action="store_true", help="also the demo fold with perceived vs true keypoints")
     p.add_argument("--simulated", action="store_true", help="also the sequence folded by the IPC simulator")
     p.add_argument("--sim-area", type=float, default=5e-4, help="mesh max triangle area (m^2) for --simulated")
@@ -257,6 +296,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.folded:
         bench_folded(args, cam, rng)
     bench_time(args, rng)
+    if args.off_plan:
+        bench_off_plan(args, cam)
     if args.simulated:
         bench_simulated(args, rng)
     if args.pipeline:

@@ -14,7 +14,9 @@ clouds first). Steps:
    the folded model's outline (flat edges and creases), and how far model outline points
    lie outside the cloth mask (the outline is first moved out by half the point spacing:
    the outermost returns lie that far inside the cloth's edge). Flat: several start shapes
-   (short/long, straight/angled sleeves) and headings are ranked and the best fitted.
+   (short/long, straight/angled sleeves) and headings are ranked and the best fitted;
+   folded: the newest fold's line starts at several offsets about the planned one
+   (`START_FOLD_OFFSETS`), ranked likewise.
    Hidden parts (a sleeve folded onto the body) cannot be seen in a silhouette: for folded
    states pass the previous stage's estimate (`prior`): its shape and earlier fold lines
    are kept, the pose and the newest fold lines are fitted;
@@ -52,6 +54,11 @@ FOLD_ANGLE_RANGE = math.radians(15.0)  # fitted fold line angle within +- this o
 FOLD_OFFSET_RANGE = 0.06  # m, fitted fold line offset within +- this of the planned one
 MAX_CREASE = 0.05  # m, the visible crease lies at most this far inside the fold line (the bulge)
 FOLD_PARAMS = 3  # per fitted fold: angle and offset about the planned line, crease
+# offsets (m) of the newest fold's line about the planned one that the fit may start from: a fold
+# that landed off its plan can hide the edge the planned line would show (a middle fold 2 cm
+# toward the shoulders lays the hem over them), and from the planned line least_squares then
+# moves the whole shirt instead of the line
+START_FOLD_OFFSETS = (0.0, -0.025, 0.025, -0.05, 0.05)
 # a fold line FOLD_PRIOR_ANGLE rad or FOLD_PRIOR_OFFSET m off the planned one costs as much as
 # one outline point FOLD_PRIOR_WEIGHT m off the model
 FOLD_PRIOR_ANGLE, FOLD_PRIOR_OFFSET, FOLD_PRIOR_WEIGHT = 0.1, 0.02, 0.003
@@ -93,7 +100,7 @@ class EstimatorConfig:
     of the largest is 'two blobs'; contour_points: outline points fitted; max_residual (m);
     max_nfev: function evaluations per fit; tolerance: least_squares
     ftol = xtol = gtol; spacing: model outline sample spacing (m); max_starts: fits tried
-    from the best-ranked starts until one's residual is under max_residual / 2."""
+    from the best-ranked starts until one's residual is under good_enough x max_residual."""
 
     pixel: float = 0.005
     min_height: float = -0.01
@@ -108,13 +115,14 @@ class EstimatorConfig:
     max_nfev: int = 400
     tolerance: float = 1e-4
     max_starts: int = 3
+    good_enough: float = 0.5
     spacing: float = 0.015
 
     def __post_init__(self) -> None:
         positive = ("pixel", "max_residual", "tolerance", "spacing", "max_area")
         bad = [k for k in positive if not (math.isfinite(getattr(self, k)) and getattr(self, k) > 0)]
         bad += [k for k in ("min_points", "max_nfev", "max_starts") if not getattr(self, k) >= 1]
-        bad += [k for k in ("max_invalid_fraction", "blob_fraction") if not 0.0 <= getattr(self, k) <= 1.0]
+        bad += [k for k in ("max_invalid_fraction", "blob_fraction", "good_enough") if not 0.0 <= getattr(self, k) <= 1.0]
         if not self.contour_points >= 3:
             bad.append("contour_points")
         if not (math.isfinite(self.min_area) and 0.0 <= self.min_area < self.max_area):
@@ -532,8 +540,15 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
         return np.concatenate([shape if free_shape else [], pose, np.ravel(f)])
 
     # starts: each start shape with its area moments aligned to the blob's (four headings),
-    # or the given pose; ranked by their cost as they are
+    # or the given pose, and the newest fold's line at START_FOLD_OFFSETS; ranked by their cost
+    # as they are
     cm, yaw_m = _moments(_mask_points(view))
+    fold_starts = []
+    for offset in START_FOLD_OFFSETS if n_f else (0.0,):
+        f0 = np.tile([0.0, 0.0, 0.002], (n_f, 1))
+        if n_f:
+            f0[-1, 1] = offset
+        fold_starts.append(f0)
     starts = []
     for shape0 in shapes:
         coarse = _Model(shape0, names, False, spacing=0.03, fixed=fixed)
@@ -546,16 +561,17 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
             poses = [np.r_[cm - _rot(yaw) @ cmod, yaw]
                      for yaw in (yaw_m - yaw_mod + k * math.pi / 2 for k in range(4))]
         for p0 in poses:
-            r = residuals(np.r_[p0, np.zeros(FOLD_PARAMS * n_f)], coarse)
-            starts.append((float(np.sum(np.sqrt(1.0 + (r / 0.01) ** 2) - 1.0)), len(starts), shape0, p0))
+            for f0 in fold_starts:
+                r = residuals(np.r_[p0, f0.ravel()], coarse)
+                starts.append((float(np.sum(np.sqrt(1.0 + (r / 0.01) ** 2) - 1.0)), len(starts), shape0, p0, f0))
     starts.sort(key=lambda t: t[:2])
 
-    def fit_from(shape0: np.ndarray, p0: np.ndarray):
+    def fit_from(shape0: np.ndarray, p0: np.ndarray, f0: np.ndarray):
         model = _Model(shape0, names, free_shape, spacing=config.spacing, fixed=fixed)
         lo = pack(lo_s, np.r_[p0[:2] - 0.3, p0[2] - math.pi], f_lo)
         hi = pack(hi_s, np.r_[p0[:2] + 0.3, p0[2] + math.pi], f_hi)
         x_scale = pack(np.r_[[0.05] * 8, 5.0, 0.05], [0.02, 0.02, 0.05], np.tile([0.05, 0.02, 0.01], n_f))
-        x0 = np.clip(pack(shape0, p0, np.tile([0.0, 0.0, 0.002], (n_f, 1))), lo + 1e-9, hi - 1e-9)
+        x0 = np.clip(pack(shape0, p0, f0), lo + 1e-9, hi - 1e-9)
         steps = 1e-4 * x_scale
         fit = least_squares(residuals, x0, jac=lambda x, mdl: jacobian(x, mdl, steps), args=(model,),
                             bounds=(lo, hi), loss="soft_l1", f_scale=0.005,
@@ -564,13 +580,18 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
         pts, sa, sb = model.samples(fit.x)
         return model, fit, float(np.sqrt(np.mean(_outline_distances(contour, pts, sa, sb) ** 2)))
 
+    # folded: the best-ranked start and the best-ranked one from the planned line are both fitted
+    # (either alone can end in a shifted shirt whose residual passes), the lower residual wins
+    planned = next((t for t in starts if not n_f or t[4][-1, 1] == 0.0), starts[0])
+    first = [starts[0]] if planned is starts[0] else [starts[0], planned]
+    order = first + [t for t in starts if all(t is not u for u in first)]
     best, nfev = None, 0
-    for _, _, shape0, p0 in starts[:config.max_starts]:
-        model, fit, resid = fit_from(shape0, p0)
+    for k, (_, _, shape0, p0, f0) in enumerate(order[:max(config.max_starts, len(first))]):
+        model, fit, resid = fit_from(shape0, p0, f0)
         nfev += fit.nfev
         if fit.status > 0 and np.all(np.isfinite(fit.x)) and (best is None or resid < best[2]):
             best = (model, fit, resid)
-        if best is not None and best[2] <= 0.5 * config.max_residual:
+        if k + 1 >= len(first) and best is not None and best[2] <= config.good_enough * config.max_residual:
             break  # good enough: the next starts rank worse
     if best is None:
         raise FitError(f"shirt model fit did not converge: {fit.message} ({nfev} evaluations)")
