@@ -51,14 +51,14 @@ SHAPE_BOUNDS = {
 OUTSIDE_WEIGHT = 1.0  # weight of model outline outside the cloth against observed outline missed by the model
 START_SLEEVES = ((0.76, -3.0), (0.76, 25.0), (0.76, 50.0), (0.4, 10.0), (0.4, 45.0), (0.15, 10.0))  # length, deg
 FOLD_ANGLE_RANGE = math.radians(15.0)  # fitted fold line angle within +- this of the planned one
-FOLD_OFFSET_RANGE = 0.06  # m, fitted fold line offset within +- this of the planned one
+FOLD_OFFSET_RANGE = 0.1  # m, fitted fold line offset within +- this of the planned one
 MAX_CREASE = 0.05  # m, the visible crease lies at most this far inside the fold line (the bulge)
 FOLD_PARAMS = 3  # per fitted fold: angle and offset about the planned line, crease
 # offsets (m) of the newest fold's line about the planned one that the fit may start from: a fold
 # that landed off its plan can hide the edge the planned line would show (a middle fold 2 cm
 # toward the shoulders lays the hem over them), and from the planned line least_squares then
 # moves the whole shirt instead of the line
-START_FOLD_OFFSETS = (0.0, -0.025, 0.025, -0.05, 0.05)
+START_FOLD_OFFSETS = (0.0, -0.025, 0.025, -0.05, 0.05, -0.075, 0.075)
 # a fold line FOLD_PRIOR_ANGLE rad or FOLD_PRIOR_OFFSET m off the planned one costs as much as
 # one outline point FOLD_PRIOR_WEIGHT m off the model
 FOLD_PRIOR_ANGLE, FOLD_PRIOR_OFFSET, FOLD_PRIOR_WEIGHT = 0.1, 0.02, 0.003
