@@ -585,22 +585,26 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
     planned = next((t for t in starts if not n_f or t[4][-1, 1] == 0.0), starts[0])
     first = [starts[0]] if planned is starts[0] else [starts[0], planned]
     order = first + [t for t in starts if all(t is not u for u in first)]
-    best, nfev = None, 0
+    best, nfev, invalid = None, 0, None
     for k, (_, _, shape0, p0, f0) in enumerate(order[:max(config.max_starts, len(first))]):
         model, fit, resid = fit_from(shape0, p0, f0)
         nfev += fit.nfev
-        if fit.status > 0 and np.all(np.isfinite(fit.x)) and (best is None or resid < best[2]):
-            best = (model, fit, resid)
+        if fit.status > 0 and np.all(np.isfinite(fit.x)):
+            try:  # a fit that ends in no shirt's shape (free shape only) is not a candidate
+                shape = ShirtShape(*model.split(fit.x)[0])
+            except ValueError as err:
+                invalid = invalid or err
+            else:
+                if best is None or resid < best[2]:
+                    best = (model, fit, resid, shape)
         if k + 1 >= len(first) and best is not None and best[2] <= config.good_enough * config.max_residual:
             break  # good enough: the next starts rank worse
+    if best is None and invalid is not None:
+        raise FitError(f"fitted shirt shape is invalid: {invalid}") from invalid
     if best is None:
         raise FitError(f"shirt model fit did not converge: {fit.message} ({nfev} evaluations)")
-    model, fit, resid = best
+    model, fit, resid, shape = best
     shape_v, pose, f = model.split(fit.x)
-    try:
-        shape = ShirtShape(*shape_v)
-    except ValueError as err:
-        raise FitError(f"fitted shirt shape is invalid: {err}") from err
     pts, sa, sb = model.samples(fit.x)
     r = _rot(pose[2])
     lines_shirt = model.lines(f)
