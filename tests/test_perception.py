@@ -143,6 +143,40 @@ def test_a_middle_fold_off_its_plan_is_fitted_where_it_landed(shift):
     assert abs(np.dot(line.point - specs[-1].line_point[:2], specs[-1].normal[:2])) < 0.006
 
 
+def test_a_start_that_ends_in_no_shirt_is_skipped(monkeypatch):
+    """Of the fits tried, one whose shape is no shirt's (e.g. neck wider than shoulders) is left
+    out and the next valid one is taken; it used to fail the whole estimate (keypoint_node then
+    refused the cloud)."""
+    import clothfold_ros.perception.estimator as estimator
+
+    g = make_shirt(1, max_area=1e-4)
+    cam = DepthCamera()
+    v, specs = g.vertices.copy(), []
+    est = estimate_keypoints(cam.cloud(v, g.triangles, rng=0))
+    for name in FOLD_SEQUENCE[:2]:
+        specs.append(fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs]))
+        v = fold_target(v, specs[-1], T)
+    cloud = cam.cloud(v, g.triangles, rng=1)
+    real, calls = estimator.ShirtShape, []
+
+    def first_fit_is_no_shirt(*values):
+        calls.append(values)
+        if len(calls) == 1:
+            raise ValueError("ShirtShape.neck_width must be < shoulder_width")
+        return real(*values)
+
+    monkeypatch.setattr(estimator, "ShirtShape", first_fit_is_no_shirt)
+    fitted = estimate_keypoints(cloud, folds=[s.name for s in specs], config=EstimatorConfig(good_enough=0.0))
+    assert len(calls) >= 2 and np.median(errors_mm(fitted, visible_keypoints(g, v, specs))) < 10.0
+
+    def never_a_shirt(*values):
+        raise ValueError("ShirtShape.neck_width must be < shoulder_width")
+
+    monkeypatch.setattr(estimator, "ShirtShape", never_a_shirt)
+    with pytest.raises(FitError, match="fitted shirt shape is invalid"):
+        estimate_keypoints(cloud, folds=[s.name for s in specs], config=EstimatorConfig(max_starts=2, good_enough=0.0))
+
+
 def test_table_points_are_segmented_away():
     g = make_shirt(1, max_area=5e-4)
     v = g.vertices + [0, 0, 0.003]  # a 3 mm thick layer above the table
