@@ -18,6 +18,12 @@ rotated by up to --max-rot deg and shifted by up to --max-offset m; the camera
   planned except one whose line lies -50..50 mm along its normal (toward the grippers) from
   the planned one; that stage's estimate (prior: the previous one) against its visible
   keypoints, and the fitted line's offset from the true one;
+- --bag BAG: the clouds of a recorded run (`clothfold demo --sequence` records /cloth/points,
+  /cloth/state, /fold/active and /fold/result) taken as keypoint_node takes them (clouds at
+  rest, the folds done from the results), each estimated by its chain
+  (perception.tracking.estimate_state) and, beside it, by the prior's lines alone and by a
+  fresh fit alone; error against the visible keypoints of the simulated cloth (shirt
+  --bag-shape at --bag-area, as the run's sim);
 - --pipeline: `clothfold demo`'s fold (sim backend) with keypoints from the point cloud and
   from the cloth state (ground truth), loss of each.
 
@@ -44,7 +50,8 @@ from clothfold_ros.folding import FOLD_SEQUENCE, fold_spec  # noqa: E402
 from clothfold_ros.garment import KEYPOINT_NAMES, SHAPES, ShirtShape, make_shirt  # noqa: E402
 from clothfold_ros.loss import fold_target  # noqa: E402
 from clothfold_ros.perception.camera import DepthCamera  # noqa: E402
-from clothfold_ros.perception.estimator import PerceptionError, estimate_keypoints  # noqa: E402
+from clothfold_ros.perception.estimator import PerceptionError, estimate_keypoints, flat_area  # noqa: E402
+from clothfold_ros.perception.tracking import estimate_state  # noqa: E402
 from clothfold_ros.perception.visible import visible_keypoints  # noqa: E402
 
 RANGES = {  # docs/method.md section 1: plausible ranges (shoulder_height: around the presets')
@@ -136,6 +143,7 @@ def bench_folded(args, cam, rng) -> None:
         except PerceptionError as err:
             fails[FOLD_SEQUENCE[0]].append(f"{label}: flat estimate: {err}")
             continue
+        first = flat_area(prior.shape)
         for name in FOLD_SEQUENCE:
             try:
                 spec = fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs])
@@ -145,7 +153,8 @@ def bench_folded(args, cam, rng) -> None:
             specs.append(spec)
             v = fold_target(v, spec, THICKNESS)
             try:
-                est = estimate_keypoints(cam.cloud(v, g.triangles, rng), folds=[s.name for s in specs], prior=prior)
+                est = estimate_state(cam.cloud(v, g.triangles, rng), [s.name for s in specs], prior=prior,
+                                     first_flat_area=first).estimate
             except PerceptionError as err:
                 fails[name].append(f"{label}: {type(err).__name__}: {err}")
                 break
@@ -174,7 +183,7 @@ def bench_off_plan(args, cam) -> None:
             g = make_shirt(1, max_area=args.max_area)
             v, specs = g.vertices.copy(), []
             prior = estimate_keypoints(cam.cloud(v, g.triangles, rng))
-            cell = "-"
+            first, cell = flat_area(prior.shape), "-"
             for name in FOLD_SEQUENCE[:FOLD_SEQUENCE.index(stage) + 1]:
                 spec = fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs])
                 if name == stage:
@@ -182,8 +191,8 @@ def bench_off_plan(args, cam) -> None:
                 specs.append(spec)
                 v = fold_target(v, spec, THICKNESS)
                 try:
-                    prior = estimate_keypoints(cam.cloud(v, g.triangles, rng), folds=[s.name for s in specs],
-                                               prior=prior)
+                    prior = estimate_state(cam.cloud(v, g.triangles, rng), [s.name for s in specs], prior=prior,
+                                           first_flat_area=first).estimate
                 except PerceptionError as err:
                     cell = type(err).__name__
                     break
@@ -208,6 +217,7 @@ def bench_simulated(args, rng) -> None:
     v = flat_start(g, cotton)
     base, specs = v.copy(), []
     prior = estimate_keypoints(cam.cloud(v, g.triangles, rng))
+    first = flat_area(prior.shape)
     print(f"\n## simulated sequence (shape 1, {len(g.triangles)} triangles, (0.723, 30))")
     for name in FOLD_SEQUENCE:
         spec = fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs])
@@ -220,7 +230,8 @@ def bench_simulated(args, rng) -> None:
         v, base = out.vertices, out.target
         truth = visible_keypoints(g, v, specs)
         try:
-            est = estimate_keypoints(cam.cloud(v, g.triangles, rng), folds=[s.name for s in specs], prior=prior)
+            est = estimate_state(cam.cloud(v, g.triangles, rng), [s.name for s in specs], prior=prior,
+                                 first_flat_area=first).estimate
         except PerceptionError as err:
             print(f"{name}: fold loss {out.loss * 1e3:.1f} mm; estimate failed: {type(err).__name__}: {err}")
             return
@@ -229,6 +240,79 @@ def bench_simulated(args, rng) -> None:
         worst = KEYPOINT_NAMES[int(np.argmax(e))]
         print(f"{name}: fold loss {out.loss * 1e3:.1f} mm; keypoint error median {np.median(e):.1f} mm, "
               f"max {e.max():.1f} mm ({worst}); residual {est.residual * 1e3:.1f} mm")
+
+
+def bench_bag(args) -> None:
+    from clothfold_msgs.msg import ClothState, FoldResult, FoldSpec as FoldSpecMsg
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import PointCloud2
+
+    from clothfold_ros.bag import BagReader
+    from clothfold_ros.nodes import conversions as rc
+    from clothfold_ros.nodes.keypoint_node import cloud_from_msg
+
+    g = make_shirt(args.bag_shape, max_area=args.bag_area)
+    kinds = {"/cloth/points": PointCloud2, "/cloth/state": ClothState, "/fold/active": FoldSpecMsg,
+             "/fold/result": FoldResult}
+    events, states = [], {}
+    for m in BagReader(args.bag).messages(list(kinds)):
+        msg = deserialize_message(m.data, kinds[m.topic])
+        stamp = rc.stamp_ns(msg.header, m.topic)
+        if m.topic == "/cloth/state":
+            states[stamp] = rc.cloth_state_from_msg(msg).vertices
+        elif m.topic == "/cloth/points":
+            events.append((stamp, 1, cloud_from_msg(msg)))
+        else:
+            events.append((stamp, 0, rc.fold_spec_from_msg(msg) if m.topic == "/fold/active" else msg))
+    events.sort(key=lambda e: e[:2])
+    print(f"\n## recorded run {args.bag} (shape {args.bag_shape}, {len(g.triangles)} triangles): keypoint error "
+          "median / max (mm) against the simulated cloth's visible keypoints, residual (mm)")
+    print("| after | cloud at (s) | chain: start | chain | prior's lines kept | fresh fit |")
+    print("|---|---|---|---|---|---|")
+    specs, failed, active, held = [], None, None, None
+    prior = first = None
+    queue = list(events)
+    while queue:
+        stamp, _, item = queue.pop(0)
+        if isinstance(item, FoldResult):
+            specs += [active.spec] if item.success else []
+            failed, active = (None if item.success else active.spec.name), None
+            if held is not None:
+                queue.insert(0, held)
+                held = None
+            continue
+        if not isinstance(item, np.ndarray):
+            active = item
+            continue
+        if active is not None:
+            held = (stamp, 1, item)  # a fold is moving the cloth: the last cloud is taken after its result
+            continue
+        names, truth = [s.name for s in specs], visible_keypoints(g, states[stamp], specs)
+
+        def cell(fit) -> str:
+            try:
+                est = fit()
+            except PerceptionError as err:
+                residual = getattr(getattr(err, "estimate", None), "residual", None)
+                return type(err).__name__ + (f" ({residual * 1e3:.1f})" if residual is not None else "")
+            e = errors_mm(est.keypoints, truth)
+            return f"{np.median(e):.0f} / {e.max():.0f} ({est.residual * 1e3:.1f})"
+
+        try:
+            state = estimate_state(item, names, prior=prior, failed=failed, first_flat_area=first)
+        except PerceptionError as err:
+            chain = f"rejected: {type(err).__name__}"
+        else:
+            chain = f"{state.start}"
+            kept = cell(lambda: state.estimate)
+        alone = cell(lambda: estimate_keypoints(item, folds=names, prior=prior)) if prior is not None else "-"
+        fresh = cell(lambda: estimate_keypoints(item, folds=names))
+        print(f"| {(names or ['flat'])[-1]} | {stamp * 1e-9:.2f} | {chain} | {kept if chain[0] != 'r' else '-'} "
+              f"| {alone} | {fresh} |", flush=True)
+        if not chain.startswith("rejected"):  # the folds done stay the bag's results (the truth's folds)
+            prior, failed = state.estimate, None
+            if not state.folds and first is None:
+                first = flat_area(state.estimate.shape)
 
 
 def bench_time(args, rng) -> None:
@@ -285,6 +369,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--pipeline", action="store_true", help="also the demo fold with perceived vs true keypoints")
     p.add_argument("--simulated", action="store_true", help="also the sequence folded by the IPC simulator")
     p.add_argument("--sim-area", type=float, default=5e-4, help="mesh max triangle area (m^2) for --simulated")
+    p.add_argument("--bag", help="also the clouds of a recorded run (MCAP), see above")
+    p.add_argument("--bag-shape", type=int, default=1, help="the recorded run's shirt shape")
+    p.add_argument("--bag-area", type=float, default=2e-4, help="the recorded run's mesh max triangle area (m^2)")
     p.add_argument("--verbose", action="store_true")
     args = p.parse_args(argv)
     rng = np.random.default_rng(args.seed)
@@ -300,6 +387,8 @@ def main(argv: list[str] | None = None) -> int:
         bench_off_plan(args, cam)
     if args.simulated:
         bench_simulated(args, rng)
+    if args.bag:
+        bench_bag(args)
     if args.pipeline:
         bench_pipeline(args)
     return 0

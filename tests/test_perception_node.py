@@ -464,37 +464,3 @@ def test_points_qos_parameter(monkeypatch):
             KeypointNode()
     finally:
         rclpy.shutdown(context=ctx)
-
-
-def test_a_folded_shirt_fitted_as_a_smaller_flat_one_is_not_taken_as_laid_flat_again():
-    """keypoint_node takes a cloud as the shirt laid flat again only when the flat fit is as large
-    as the flat shirt first seen (FLAT_AGAIN_AREA): after the sleeve folds (and a side fold, in a
-    demo where planning from it failed the next fold) a free flat fit finds a much smaller shirt."""
-    from types import SimpleNamespace
-
-    from clothfold_ros.folding import FOLD_SEQUENCE
-    from clothfold_ros.nodes.keypoint_node import FLAT_AGAIN_AREA, KeypointNode
-    from clothfold_ros.perception.estimator import PoorFitError, estimate_keypoints, flat_area
-
-    g = make_shirt(1, max_area=5e-4)
-    cam = DepthCamera()
-    flat = estimate_keypoints(cam.cloud(g.vertices, g.triangles, rng=0))
-    assert flat_area(flat.shape) == pytest.approx(flat_area(g.shape), rel=0.05)
-    v, specs = g.vertices.copy(), []
-    for name in FOLD_SEQUENCE[:2]:
-        specs.append(fold_spec(name, visible_keypoints(g, v, specs), folds_done=[s.name for s in specs]))
-        v = fold_target(v, specs[-1], T)
-    try:
-        folded_as_flat = estimate_keypoints(cam.cloud(v, g.triangles, rng=1))
-    except PoorFitError as err:  # the outline may fit badly too: its shape is what is compared
-        folded_as_flat = err.estimate
-    again = estimate_keypoints(cam.cloud(g.vertices, g.triangles, rng=2))
-    warnings: list[str] = []
-    node = SimpleNamespace(flat_area=flat_area(flat.shape), fold_names=lambda: [s.name for s in specs],
-                           get_logger=lambda: SimpleNamespace(warn=warnings.append))
-    assert flat_area(folded_as_flat.shape) < FLAT_AGAIN_AREA * node.flat_area
-    assert not KeypointNode.flat_again(node, folded_as_flat)
-    assert "not taken as the shirt laid flat again" in warnings[-1]
-    assert KeypointNode.flat_again(node, again)
-    node.flat_area = None  # never seen flat: nothing to compare with
-    assert KeypointNode.flat_again(node, folded_as_flat)

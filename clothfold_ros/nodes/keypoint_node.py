@@ -9,8 +9,9 @@ corners are the folded outline's corners). The folds done are learnt from the pi
 source = "points" (a real robot's camera, or the sim's /cloth/points): every cloud on
 `points_topic` (sensor_msgs/PointCloud2, float x, y, z) in frame `points_frame` is moved
 into the table frame by the fixed `table_from_camera` transform and fitted with the shirt
-model (`perception.estimator`, with the folds done; each stage starts from the previous
-estimate). Publishes /keypoints (vertex ids -1) and the fitted outline as a
+model (`perception.tracking.estimate_state`: the folds done, from the previous estimate's
+lines, then its shape with every line refitted, then afresh; a fold reported failed and the
+shirt laid flat again are tried too). Publishes /keypoints (vertex ids -1) and the fitted outline as a
 visualization_msgs/Marker LINE_LIST on /keypoints/outline. Clouds arriving while a fold
 is executing are skipped (the cloth moves, the grippers are in view). `points_qos` is the
 subscription's QoS: "latched" for the sim's camera, "sensor_data" (best effort, volatile) for a
@@ -54,7 +55,6 @@ from . import common, params
 from .params import Param
 
 OUTLINE_TOPIC = "/keypoints/outline"
-FLAT_AGAIN_AREA = 0.9  # a flat fit of a folded shirt's cloud is taken as the shirt laid flat again from this share of the first flat area
 STALE_AFTER = 30.0  # s past a fold's end without its result: the fold is no longer taken as executing
 POINTS_QOS = {"latched": common.LATCHED, "sensor_data": qos_profile_sensor_data}
 
@@ -267,7 +267,8 @@ class KeypointNode(Node):
 
     # -- source = points ------------------------------------------------------------------------------
     def on_points(self, msg: PointCloud2) -> None:
-        from ..perception.estimator import PerceptionError, PoorFitError, estimate_keypoints, flat_area
+        from ..perception.estimator import PerceptionError, PoorFitError, flat_area
+        from ..perception.tracking import estimate_state
 
         try:
             stamp = rc.stamp_ns(msg.header, "cloud")
@@ -283,31 +284,9 @@ class KeypointNode(Node):
                 raise ValueError(f"cloud frame is {msg.header.frame_id!r}; points_frame is "
                                  f"{params.value(self, 'points_frame')!r}")
             pts = cloud_from_msg(msg) @ self.rotation.T + self.translation
-            candidates = [(self.fold_names(), self.prior)]
-            if self.prior is not None:  # the cloth moved far from the last estimate: a fresh start
-                candidates.append((self.fold_names(), None))
-            if self.failed is not None:
-                candidates.append((self.fold_names(self.failed), self.prior))
-            if self.folds:
-                candidates.append(([], None))  # laid flat again?
-            best, last_err = None, None
-            for names, prior in candidates:
-                try:
-                    est = estimate_keypoints(pts, folds=names, prior=prior, config=self.config)
-                except PoorFitError as err:
-                    last_err = err
-                    continue
-                except ValueError as err:  # e.g. a fitted shape that is no shirt's: this candidate fails
-                    last_err = last_err or err
-                    continue
-                if not names and self.folds and not self.flat_again(est):
-                    continue
-                if best is None or est.residual < best[1].residual:
-                    best = (names, est)
-                if names == self.fold_names():
-                    break  # the expected state fits: done
-            if best is None:
-                raise last_err
+            state = estimate_state(pts, self.fold_names(), prior=self.prior,
+                                   failed=self.failed.name if self.failed is not None else None,
+                                   first_flat_area=self.flat_area, config=self.config)
         except PoorFitError as err:
             self.errors += 1
             self.get_logger().error(f"keypoint fit rejected ({self.errors} so far): {err}; keeping the last good "
@@ -319,11 +298,15 @@ class KeypointNode(Node):
             self.get_logger().error(f"bad cloud skipped ({self.errors} so far): {type(err).__name__}: {err}; "
                                     "keeping the last good keypoints")
             return
-        names, est = best
+        for warning in state.warnings:
+            self.get_logger().warn(warning)
+        names, est = state.folds, state.estimate
         if names != self.fold_names():
             self.get_logger().warn(f"the cloud fits folds {names} better than the expected {self.fold_names()}: "
                                    "taking that as the cloth's state")
             self.folds = (self.folds + [self.failed]) if len(names) > len(self.folds) else []
+        elif state.start != "prior" and self.prior is not None:
+            self.get_logger().info(f"keypoints fitted from the {state.start} start ({'; '.join(state.tried)})")
         self.failed = None
         self.prior = est
         if not names and self.flat_area is None:
@@ -335,22 +318,6 @@ class KeypointNode(Node):
         if self.count == 1 or self.count % 20 == 0:
             self.get_logger().info(f"keypoints from {est.n_points} cloud points, folds {names}: residual "
                                    f"{est.residual * 1e3:.1f} mm, {est.seconds * 1e3:.0f} ms CPU ({self.count} so far)")
-
-    def flat_again(self, est) -> bool:
-        """Whether a flat-shirt fit `est` of a cloud taken while folds are done shows the shirt
-        laid flat again: its flat shirt at least FLAT_AGAIN_AREA of the one first fitted. A free
-        flat fit of a poorly fitting folded shirt finds a smaller shirt (after two sleeve folds
-        and a side fold in the demo: planned from it, the next fold failed at 161 mm)."""
-        from ..perception.estimator import flat_area
-
-        if self.flat_area is None:
-            return True  # never seen flat: nothing to compare with
-        ratio = flat_area(est.shape) / self.flat_area
-        if ratio >= FLAT_AGAIN_AREA:
-            return True
-        self.get_logger().warn(f"the cloud fits a flat shirt of {ratio:.0%} the area of the one first seen: not "
-                               f"taken as the shirt laid flat again (folds {self.fold_names()})")
-        return False
 
     def outline_marker(self, segments: np.ndarray, stamp: int, rejected: bool = False) -> Marker:
         """LINE_LIST of the fitted model outline (segments (S, 2, 2) m, table frame) at z = 1 cm."""
