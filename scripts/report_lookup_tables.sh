@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Figures and reports of a lookup-table root, as a sweep finishes tables (or at a checkpoint):
+# every table's landscape.png and best_worst.png, the 13 landscapes side by side
+# (ROOT/landscapes.png), the leave-one-out regret over the complete tables (ROOT/regret.md) and
+# the table-status block of each Markdown file named. The regret rows that README.md and
+# docs/lookup.md quote are held against ROOT/regret.md by tests/test_lookup_regret_report.py:
+# copy them over by hand, with the text around them.
+# Usage: scripts/report_lookup_tables.sh [ROOT [MARKDOWN ...]]
+#   scripts/report_lookup_tables.sh config/tables_12k README.md docs/lookup.md config/tables_12k/README.md
+set -eu
+if ! command -v clothfold >/dev/null 2>&1; then
+  ROOT_DIR=$(cd "$(dirname "$0")/.." && pwd)
+  if [ -f "$ROOT_DIR/.venv/clothfold_env.sh" ]; then . "$ROOT_DIR/.venv/clothfold_env.sh"
+  else echo "clothfold not found: run $ROOT_DIR/clothfold --help once to set up .venv" >&2; exit 2; fi
+fi
+TABLES=${1:-config/tables_12k}
+shift || true
+# each table's landscape and best/worst renders (a table whose sweep has no run yet has no table.csv)
+for csv in "$TABLES"/*/table.csv; do
+  [ -f "$csv" ] && clothfold plot --tables "$TABLES" "$(basename "$(dirname "$csv")")"
+done
+clothfold plot --overview --tables "$TABLES"       # the 13 landscapes side by side
+clothfold regret --tables "$TABLES" --out "$TABLES/regret.md" > /dev/null
+if [ "$#" -gt 0 ]; then
+  clothfold tables --tables "$TABLES" --write "$@"
+else
+  clothfold tables --tables "$TABLES"
+fi
