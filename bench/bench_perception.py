@@ -154,7 +154,7 @@ def bench_folded(args, cam, rng) -> None:
             v = fold_target(v, spec, THICKNESS)
             try:
                 est = estimate_state(cam.cloud(v, g.triangles, rng), [s.name for s in specs], prior=prior,
-                                     first_flat_area=first).estimate
+                                     flat_shirt_area=first).estimate
             except PerceptionError as err:
                 fails[name].append(f"{label}: {type(err).__name__}: {err}")
                 break
@@ -192,7 +192,7 @@ def bench_off_plan(args, cam) -> None:
                 v = fold_target(v, spec, THICKNESS)
                 try:
                     prior = estimate_state(cam.cloud(v, g.triangles, rng), [s.name for s in specs], prior=prior,
-                                           first_flat_area=first).estimate
+                                           flat_shirt_area=first).estimate
                 except PerceptionError as err:
                     cell = type(err).__name__
                     break
@@ -231,7 +231,7 @@ def bench_simulated(args, rng) -> None:
         truth = visible_keypoints(g, v, specs)
         try:
             est = estimate_state(cam.cloud(v, g.triangles, rng), [s.name for s in specs], prior=prior,
-                                 first_flat_area=first).estimate
+                                 flat_shirt_area=first).estimate
         except PerceptionError as err:
             print(f"{name}: fold loss {out.loss * 1e3:.1f} mm; estimate failed: {type(err).__name__}: {err}")
             return
@@ -299,7 +299,7 @@ def bench_bag(args) -> None:
             return f"{np.median(e):.0f} / {e.max():.0f} ({est.residual * 1e3:.1f})"
 
         try:
-            state = estimate_state(item, names, prior=prior, failed=failed, first_flat_area=first)
+            state = estimate_state(item, names, prior=prior, failed=failed, flat_shirt_area=first)
         except PerceptionError as err:
             chain = f"rejected: {type(err).__name__}"
         else:

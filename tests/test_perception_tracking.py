@@ -93,12 +93,12 @@ def test_a_folded_shirt_fitted_as_a_smaller_flat_one_is_not_taken_as_laid_flat_a
     again = estimate_keypoints(cam.cloud(g.vertices, g.triangles, rng=3))
     first = flat_area(flat.shape)
     assert flat_area(folded_as_flat.shape) < FLAT_AGAIN_AREA * first
-    assert "the area of the one first seen" in smaller_shirt(folded_as_flat, first)
+    assert "the area of the one seen flat" in smaller_shirt(folded_as_flat, first)
     assert smaller_shirt(again, first) is None
     assert smaller_shirt(folded_as_flat, None) is None  # never seen flat: nothing to compare with
     # the whole chain: sleeves expected, the shirt lies flat again: taken as flat
     state = estimate_state(cam.cloud(g.vertices, g.triangles, rng=4), ["left_sleeve", "right_sleeve"],
-                           first_flat_area=first)
+                           flat_shirt_area=first)
     assert state.start == "flat again" and state.folds == [], state.tried
 
 
@@ -124,4 +124,22 @@ def test_a_fresh_fit_of_a_smaller_shirt_is_not_taken(sleeve_stages):
     loose = estimate_state(cloud, ["left_sleeve"])
     assert loose.start == "fresh" and flat_area(loose.estimate.shape) < FLAT_AGAIN_AREA * first
     with pytest.raises(PoorFitError, match="only a smaller shirt"):
-        estimate_state(cloud, ["left_sleeve"], first_flat_area=first)
+        estimate_state(cloud, ["left_sleeve"], flat_shirt_area=first)
+
+
+def test_with_no_fold_done_a_smaller_flat_shirt_is_a_new_shirt():
+    """The size check guards folded states only: laid flat with no fold done, a smaller shirt
+    (shape 1 at 80 % scale) lying 58 cm from the last estimate is taken from a fresh fit."""
+    from dataclasses import replace
+
+    from clothfold_ros.garment import SHAPES
+
+    big = make_shirt(1, max_area=1e-4)
+    cam = DepthCamera()
+    prior = estimate_keypoints(cam.cloud(big.vertices, big.triangles, rng=0))
+    small = make_shirt(replace(SHAPES[1], scale=0.8 * SHAPES[1].scale), max_area=1e-4)
+    v = small.vertices + [0.5, 0.3, 0.0]  # beyond the prior fit's pose bounds (0.3 m): a fresh fit
+    state = estimate_state(cam.cloud(v, small.triangles, rng=1), [], prior=prior,
+                           flat_shirt_area=flat_area(prior.shape))
+    assert state.start == "fresh" and state.folds == [] and flat_area(state.estimate.shape) < 0.8 * flat_area(prior.shape)
+    assert np.median(errors_mm(state.estimate, small.keypoints(v))) < 5.0

@@ -128,7 +128,7 @@ class KeypointNode(Node):
         self.given_up = None  # the last fold taken as over without its result (PlannedFold)
         self.failed = None  # a fold that failed: the cloth may or may not be folded by it
         self.prior = None  # the last good estimate (source = points)
-        self.flat_area: float | None = None  # m^2, the flat shirt first fitted (source = points)
+        self.flat_area: float | None = None  # m^2, the flat shirt last fitted with no fold done (source = points)
         self.skipped = None  # (callback, msg) of the last cloth message skipped while a fold ran
         self.published_ns = -1  # stamp of the newest keypoints published: an older cloth message is stale
         self._garment = None
@@ -286,7 +286,7 @@ class KeypointNode(Node):
             pts = cloud_from_msg(msg) @ self.rotation.T + self.translation
             state = estimate_state(pts, self.fold_names(), prior=self.prior,
                                    failed=self.failed.name if self.failed is not None else None,
-                                   first_flat_area=self.flat_area, config=self.config)
+                                   flat_shirt_area=self.flat_area, config=self.config)
         except PoorFitError as err:
             self.errors += 1
             self.get_logger().error(f"keypoint fit rejected ({self.errors} so far): {err}; keeping the last good "
@@ -309,7 +309,7 @@ class KeypointNode(Node):
             self.get_logger().info(f"keypoints fitted from the {state.start} start ({'; '.join(state.tried)})")
         self.failed = None
         self.prior = est
-        if not names and self.flat_area is None:
+        if not names:  # the shirt as it lies flat now (a new shirt may have been laid down)
             self.flat_area = flat_area(est.shape)
         self.published_ns = stamp
         self.pub.publish(rc.keypoints_to_msg(est.keypoints, stamp, folds=names))

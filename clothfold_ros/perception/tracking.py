@@ -14,8 +14,9 @@ tries those hypotheses in tiers and says which one it took:
      cloth slid);
   3. `fresh`: shape, pose and lines fitted from the cloud alone. A folded silhouette is
      ambiguous (a shirt with short sleeves fits one with its sleeves folded; after the
-     middle fold a near-rectangle fits turned by 90 deg as well), so a fresh fit whose flat
-     shirt is smaller than FLAT_AGAIN_AREA of the one first seen is not taken;
+     middle fold a near-rectangle fits turned by 90 deg as well), so while folds are expected
+     a fresh fit whose flat shirt is smaller than FLAT_AGAIN_AREA of the one seen flat is not
+     taken (with no fold done, a flat cloud of a smaller shirt is taken: a new shirt);
   the best of a tier is taken when its residual is within `good_enough x max_residual`,
   else the lowest residual within `max_residual` over the three tiers;
   4. only when none fits, `flat again`: no folds, a fresh fit, with the same size check.
@@ -33,7 +34,7 @@ from .estimator import (BadCloudError, EstimatorConfig, KeypointEstimate, Multip
                         PoorFitError, estimate_keypoints, flat_area)
 
 #: a flat fit of a folded shirt's cloud is taken as the shirt laid flat again from this share
-#: of the flat shirt's area first seen
+#: of the flat shirt's area as last seen flat
 FLAT_AGAIN_AREA = 0.9
 #: errors of the cloud itself: no hypothesis can fit it
 CLOUD_ERRORS = (BadCloudError, NoClothError, MultipleBlobsError)
@@ -53,24 +54,25 @@ class StateEstimate:
     warnings: list[str] = field(default_factory=list)
 
 
-def smaller_shirt(estimate: KeypointEstimate, first_flat_area: float | None) -> str | None:
+def smaller_shirt(estimate: KeypointEstimate, flat_shirt_area: float | None) -> str | None:
     """None when the flat shirt of a fit `estimate` is at least FLAT_AGAIN_AREA of
-    `first_flat_area` m^2 (or no flat shirt was seen), else a phrase saying how much smaller."""
-    if first_flat_area is None:
+    `flat_shirt_area` m^2 (or no flat shirt was seen), else a phrase saying how much smaller."""
+    if flat_shirt_area is None:
         return None
-    ratio = flat_area(estimate.shape) / first_flat_area
+    ratio = flat_area(estimate.shape) / flat_shirt_area
     if ratio >= FLAT_AGAIN_AREA:
         return None
-    return f"a flat shirt of {ratio:.0%} the area of the one first seen"
+    return f"a flat shirt of {ratio:.0%} the area of the one seen flat"
 
 
 def estimate_state(points: np.ndarray, folds: Sequence[str], prior: KeypointEstimate | None = None,
-                   failed: str | None = None, first_flat_area: float | None = None,
+                   failed: str | None = None, flat_shirt_area: float | None = None,
                    config: EstimatorConfig = EstimatorConfig()) -> StateEstimate:
     """The state a cloud (N, 3) m, table frame, shows after `folds` (names, in order).
 
     prior: the last good estimate of this shirt; failed: a fold reported failed since it;
-    first_flat_area: m^2, the flat shirt's area first fitted (`flat_area`). Raises the cloud's
+    flat_shirt_area: m^2, the flat shirt's area as last fitted with no fold done (`flat_area`;
+    None: not seen). Raises the cloud's
     `PerceptionError` when the cloud itself is bad, else the best rejected hypothesis'
     `PoorFitError` (carrying its estimate; also when only fresh fits of a smaller shirt fit) or
     the last fit error when no hypothesis fits."""
@@ -105,7 +107,8 @@ def estimate_state(points: np.ndarray, folds: Sequence[str], prior: KeypointEsti
             tried.append(f"{start}: {type(err).__name__}: {err}")
             return None
         tried.append(f"{start}: residual {est.residual * 1e3:.1f} mm")
-        smaller = smaller_shirt(est, first_flat_area) if start in ("fresh", "flat again") else None
+        # folds expected: a fresh fit must find the shirt seen flat (none: a flat cloud may be a new shirt)
+        smaller = smaller_shirt(est, flat_shirt_area) if folds and start in ("fresh", "flat again") else None
         if smaller is not None:
             tried[-1] += f", {smaller}"
             warnings.append(f"the cloud fits {smaller}: not taken as the shirt laid flat again (folds {folds})"
@@ -132,7 +135,7 @@ def estimate_state(points: np.ndarray, folds: Sequence[str], prior: KeypointEsti
             raise min(rejected, key=lambda e: e.estimate.residual)
         if refused:
             why, est = refused[0]
-            raise PoorFitError(f"the cloud fits only a smaller shirt than the one first seen ({why})", est)
+            raise PoorFitError(f"the cloud fits only a smaller shirt than the one seen flat ({why})", est)
         raise errors[-1]
     start, names, est = best
     return StateEstimate(list(names), start, est, tried, warnings)
