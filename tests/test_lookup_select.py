@@ -144,7 +144,7 @@ def _write_table_dir(d: Path, t: Table, with_finals: bool = False) -> None:
                         "success": int(t.success[i]), "reason": t.reason[i], "wall_time_s": 1.0,
                         "newton_iterations": 10, "steps": 5, "max_area_m2": 4e-3, "vertices": 3})
     settings = {} if t.name == "shape1" else {"settings": {"end_angle_deg": 170.0}}  # shape1: legacy (175)
-    (d / "provenance.json").write_text(json.dumps({"resolution": {"max_area_m2": 4e-3}, **settings}))
+    (d / "provenance.json").write_text(json.dumps({"resolution": {"max_area_m2": 4e-3}, "complete": True, **settings}))
     if with_finals:
         tri = np.array([[0, 1, 2]])
         target = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float32)

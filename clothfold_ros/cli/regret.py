@@ -25,7 +25,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         tables = load_tables(tables_arg(args))
-        partial = sorted(n for n, t in tables.items() if not t.provenance.get("complete", True))
+        partial = sorted(n for n, t in tables.items() if not t.complete)
         if not args.partial:
             tables = {n: t for n, t in tables.items() if n not in partial}
         rows = {name: evaluate(tables, name) for name in RULES}

@@ -57,8 +57,13 @@ COVERAGE_LEVELS: tuple[str, ...] = ("every:4:6", "every:3:3", "every:2:2", "all"
 def coverage_order(points: Iterable[int]) -> list[int]:
     """`points` in the order a sweep runs them: by the first of COVERAGE_LEVELS holding each,
     then by fan index."""
+    points = [int(p) for p in points]
+    n = len(fan())
+    outside = sorted({p for p in points if not 0 <= p < n})
+    if outside:
+        raise ValueError(f"fan indices must be in 0..{n - 1}, got {outside}")
     level: dict[int, int] = {}
     for i, selection in enumerate(COVERAGE_LEVELS):
         for p in fan_points(selection):
             level.setdefault(int(p), i)
-    return sorted((int(p) for p in points), key=lambda p: (level[p], p))
+    return sorted(points, key=lambda p: (level[p], p))

@@ -54,7 +54,7 @@ class TableSelector:
         #: 2026-12-06 hold the low corner)
         coarse = set(fan_points(COVERAGE_LEVELS[0]).tolist())
         self.partial = sorted(n for n, t in self.tables.items()
-                              if not t.provenance.get("complete", True) and n not in self.unusable
+                              if not t.complete and n not in self.unusable
                               and not coarse <= set(t.point.tolist()))
         complete = {n: t for n, t in self.tables.items() if n not in self.partial}
         if not any(t.success.any() for t in complete.values()):
@@ -81,8 +81,8 @@ class TableSelector:
         raw = "failed there" if math.isnan(c.raw_loss) else f"{c.raw_loss * 1e3:.1f} mm"
         note = (f"fan point {c.point} from {', '.join(f'{n} (d={d:.2f})' for n, d in zip(c.scenarios, c.distances))}; "
                 f"smoothed loss {c.expected_loss * 1e3:.1f} mm, simulated {raw}; "
-                f"table {self.origin[t.name] / t.name}, max_area {t.provenance.get('resolution', {}).get('max_area_m2')} "
-                f"m^2, {len(t.point)} fan points{'' if t.provenance.get('complete', True) else ' (incomplete)'}")
+                f"table {t.directory or self.origin[t.name] / t.name}, max_area {t.provenance.get('resolution', {}).get('max_area_m2')} "
+                f"m^2, {len(t.point)} fan points{'' if t.complete else ' (incomplete)'}")
         if t.fold_type != feats["fold_type"]:  # nearest neighbour across fold types: say so
             kind = fold_type(fold_name)
             own = any(u.fold_type == feats["fold_type"] and u.success.any() for u in self.choosable.values())

@@ -65,7 +65,7 @@ def _default_best(tables: Mapping[str, Table], held: str) -> tuple[int, str] | N
 
 #: name -> (rule, description). A rule maps (tables, held-out name) to (fan point, source).
 RULES: dict[str, tuple[Rule, str]] = {
-    "robust": (partial(_nearest_tables, robust=True), "robust rule (neighbourhood-smoothed, nearest tables; the planner's)"),
+    "robust": (partial(_nearest_tables, robust=True), "robust rule (the planner's: neighbourhood-smoothed, nearest tables, ties within 0.5 mm to the fan's middle)"),
     "argmin": (partial(_nearest_tables, robust=False), "raw argmin of the nearest table"),
     "static": (_static, "one static trajectory: the middle of the fan"),
     "default_best": (_default_best, "the default table's best point everywhere"),
@@ -148,7 +148,7 @@ def report(rows: list[RegretRow], title: str = "regret") -> str:
 
 def summary(rows_by_rule: Mapping[str, list[RegretRow]]) -> str:
     """A Markdown table, one line per rule: mean and worst regret (mm) and success rate."""
-    lines = ["| rule | scenarios with a regret | mean regret mm | worst regret mm | success (completed, <= 2 cm) |",
+    lines = ["| rule | scenarios with a regret | mean regret mm | worst regret mm | success (completed, <= 2 cm: the sleeve folds' threshold, on every fold) |",
              "|---|---|---|---|---|"]
     for name, rows in rows_by_rule.items():
         good, n_eval = success_rate(rows)

@@ -44,6 +44,13 @@ class Table:
     success: np.ndarray  # (K,) bool
     reason: list[str]
     provenance: dict
+    directory: Path | None = None  # where it was loaded from (None: built in memory)
+
+    @property
+    def complete(self) -> bool:
+        """Every fan point its sweep asked for simulated (provenance "complete"; a provenance
+        without the field counts as partial, so it is never taken as finished)."""
+        return bool(self.provenance.get("complete", False))
 
     @property
     def fold_type(self) -> float:
@@ -122,25 +129,53 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
 
 
 def load_table(table_dir: str | Path) -> Table:
-    """Load one scenario table directory (clear errors for missing or broken files)."""
+    """Load one scenario table directory (clear errors for missing or broken files: one
+    scenario per table, finite features, fan points of `trajectory.fan` with their own (h,
+    tilt), each once, success 0 or 1, a finite loss >= 0 for every successful run)."""
+    from ..trajectory import fan
+
     d = Path(table_dir)
     if not (d / TABLE).is_file():
         raise FileNotFoundError(f"no lookup table at {d / TABLE}")
     try:
         prov = json.loads((d / PROVENANCE).read_text())
+        if not isinstance(prov, dict):
+            raise ValueError(f"{PROVENANCE} is not a JSON object")
         with open(d / TABLE, newline="") as f:
             rows = list(csv.DictReader(f))
         if not rows:
             raise ValueError("no rows")
+        names = sorted({r["scenario"] for r in rows})
+        if len(names) != 1:
+            raise ValueError(f"rows of several scenarios: {', '.join(names)}")
         feats = {k: float(rows[0][k]) for k in FEATURE_NAMES}
-        return Table(
-            name=rows[0]["scenario"], features=feats,
-            point=np.array([int(r["point"]) for r in rows]),
-            height_ratio=np.array([float(r["height_ratio"]) for r in rows]),
-            tilt_deg=np.array([float(r["tilt_deg"]) for r in rows]),
-            loss=np.array([float(r["loss_m"]) for r in rows]),
-            success=np.array([r["success"] == "1" for r in rows]),
-            reason=[r["reason"] for r in rows], provenance=prov)
+        bad = [k for k, v in feats.items() if not np.isfinite(v)]
+        if bad:
+            raise ValueError(f"feature(s) {', '.join(bad)} not finite")
+        point = np.array([int(r["point"]) for r in rows])
+        h = np.array([float(r["height_ratio"]) for r in rows])
+        tilt = np.array([float(r["tilt_deg"]) for r in rows])
+        f = fan()
+        if point.min() < 0 or point.max() >= len(f):
+            raise ValueError(f"fan point outside 0..{len(f) - 1}: {sorted(set(point[(point < 0) | (point >= len(f))]))}")
+        dup = sorted(p for p, n in Counter(point.tolist()).items() if n > 1)
+        if dup:
+            raise ValueError(f"fan point(s) listed twice: {dup}")
+        off = ~(np.isclose(h, f[point, 0], atol=1e-4) & np.isclose(tilt, f[point, 1], atol=1e-3))
+        if off.any():
+            k = int(np.flatnonzero(off)[0])
+            raise ValueError(f"fan point {point[k]} has (h, tilt) ({h[k]:g}, {tilt[k]:g}); the fan's is "
+                             f"({f[point[k], 0]:g}, {f[point[k], 1]:g})")
+        flags = [r["success"] for r in rows]
+        if set(flags) - {"0", "1"}:
+            raise ValueError(f"success must be 0 or 1, not {sorted(set(flags) - {'0', '1'})}")
+        success = np.array([x == "1" for x in flags])
+        loss = np.array([float(r["loss_m"]) for r in rows])
+        wrong = success & ~(np.isfinite(loss) & (loss >= 0))
+        if wrong.any():
+            raise ValueError(f"successful run(s) without a finite loss >= 0 at fan point(s) {point[wrong].tolist()}")
+        return Table(name=names[0], features=feats, point=point, height_ratio=h, tilt_deg=tilt, loss=loss,
+                     success=success, reason=[r["reason"] for r in rows], provenance=prov, directory=d)
     except (OSError, KeyError, ValueError, json.JSONDecodeError) as err:
         raise ValueError(f"broken lookup table in {d}: {type(err).__name__}: {err}") from err
 
@@ -173,10 +208,14 @@ def load_layered_tables(roots: list[Path]) -> tuple[dict[str, Table], dict[str, 
     chosen: dict[str, Table] = {}
     origin: dict[str, Path] = {}
     for root in existing:
+        here: dict[str, Path] = {}
         for d in layout.table_dirs(root):
             t = load_table(d)
+            if t.name in here:
+                raise ValueError(f"two tables of scenario {t.name!r} in {root}: {here[t.name]} and {d}")
+            here[t.name] = Path(d)
             held = chosen.get(t.name)
-            if held is None or (not held.provenance.get("complete", True) and t.provenance.get("complete", True)):
+            if held is None or (not held.complete and t.complete):
                 chosen[t.name], origin[t.name] = t, Path(root)
     if not chosen:
         raise FileNotFoundError(f"no lookup tables (*/{TABLE}) under {', '.join(str(r) for r in existing)}")
