@@ -399,3 +399,58 @@ def test_a_non_finite_keypoint_a_feature_is_measured_from_is_named() -> None:
     with pytest.raises(ValueError, match=r"feature sleeve_length is nan: non-finite keypoint\(s\) shoulder_right"):
         features(fold_name="left_side", **args)
     assert all(math.isfinite(v) for v in features(fold_name="left_sleeve", **args).values())
+
+
+@pytest.mark.parametrize("column, value, message", [
+    ("fold_type", "nan", "fold_type differ between rows"),
+    ("point", "134", "fan point outside 0..133"),
+    ("tilt_deg", "12.5", "has \\(h, tilt\\)"),
+    ("success", "yes", "success must be 0 or 1"),
+    ("loss_m", "nan", "without a finite loss"),
+    ("loss_m", "-0.001", "without a finite loss"),
+    ("scenario", "shape2", "rows of several scenarios"),
+])
+def test_a_broken_table_row_is_refused_naming_the_problem(tmp_path: Path, column: str, value: str,
+                                                         message: str) -> None:
+    """A table read from disk is checked: a NaN feature, a point off the fan or not at its own
+    (h, tilt), a success flag other than 0/1, a successful run without a finite loss >= 0,
+    rows of two scenarios: each a ValueError naming the table and the fault (they crashed
+    the selection deep inside or vanished from the regret before)."""
+    from clothfold_ros.lookup.table import load_table
+
+    pts = np.arange(0, 134, 7)
+    _write_table_dir(tmp_path / "shape1", _table("shape1", _bowl(66)[pts], points=pts))
+    assert len(load_table(tmp_path / "shape1").point) == len(pts)  # the table as written loads
+    path = tmp_path / "shape1" / "table.csv"
+    rows = list(csv.DictReader(open(path, newline="")))
+    rows[-1][column] = value
+    if column == "fold_type":  # every row: no longer a row that differs, a table whose feature is NaN
+        rows_all = [{**r, column: value} for r in rows]
+        with open(path, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=COLUMNS)
+            w.writeheader()
+            w.writerows(rows_all)
+        with pytest.raises(ValueError, match="fold_type not finite"):
+            load_table(tmp_path / "shape1")
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS)
+        w.writeheader()
+        w.writerows(rows)
+    with pytest.raises(ValueError, match=f"broken lookup table in .*shape1: ValueError: .*{message}"):
+        load_table(tmp_path / "shape1")
+
+
+def test_two_tables_of_one_scenario_in_one_root_are_refused(tmp_path: Path) -> None:
+    pts = np.arange(0, 134, 7)
+    _write_table_dir(tmp_path / "shape1", _table("shape1", _bowl(66)[pts], points=pts))
+    _write_table_dir(tmp_path / "shape1_old", _table("shape1", _bowl(20)[pts], points=pts))
+    with pytest.raises(ValueError, match="two tables of scenario 'shape1'"):
+        TableSelector(tmp_path)
+
+
+def test_coverage_order_refuses_points_off_the_fan() -> None:
+    from clothfold_ros.lookup.fan_selection import coverage_order
+
+    assert sorted(coverage_order([5, 4])) == [4, 5]
+    with pytest.raises(ValueError, match="must be in 0..133, got \\[134\\]"):
+        coverage_order([3, 134])

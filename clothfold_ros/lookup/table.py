@@ -130,7 +130,7 @@ def write_table(sweep_dir: str | Path, command: str, points: list[int]) -> Path:
 
 def load_table(table_dir: str | Path) -> Table:
     """Load one scenario table directory (clear errors for missing or broken files: one
-    scenario per table, finite features, fan points of `trajectory.fan` with their own (h,
+    scenario per table, one set of finite features, fan points of `trajectory.fan` with their own (h,
     tilt), each once, success 0 or 1, a finite loss >= 0 for every successful run)."""
     from ..trajectory import fan
 
@@ -148,6 +148,9 @@ def load_table(table_dir: str | Path) -> Table:
         names = sorted({r["scenario"] for r in rows})
         if len(names) != 1:
             raise ValueError(f"rows of several scenarios: {', '.join(names)}")
+        differ = [k for k in FEATURE_NAMES if len({r[k] for r in rows}) > 1]
+        if differ:
+            raise ValueError(f"feature(s) {', '.join(differ)} differ between rows")
         feats = {k: float(rows[0][k]) for k in FEATURE_NAMES}
         bad = [k for k, v in feats.items() if not np.isfinite(v)]
         if bad:
