@@ -19,11 +19,12 @@ class Pose:
         q = np.asarray(self.quaternion, dtype=float).reshape(4)
         if not (np.all(np.isfinite(p)) and np.all(np.isfinite(q))):
             raise ValueError(f"pose has non-finite values: position={p}, quaternion={q}")
-        n = np.linalg.norm(q)
-        if n < 1e-9:
+        scale = np.max(np.abs(q))  # normalised in two steps: a norm of huge components overflows to inf
+        if not scale > 0 or np.linalg.norm(q / scale) * scale < 1e-9:
             raise ValueError("pose quaternion has zero norm")
+        q = q / scale
         object.__setattr__(self, "position", p)
-        object.__setattr__(self, "quaternion", q / n)
+        object.__setattr__(self, "quaternion", q / np.linalg.norm(q))
 
     @property
     def rotation(self) -> Rotation:

@@ -244,3 +244,19 @@ def test_fold_cancelled_before_its_start_does_not_hold_the_clock(rig):
     _command(r, t0, 0.08)
     _now(r, after_ns=t0 + 50 * DT_NS, timeout=15.0)
     _log(r, f"close at {t0 * 1e-9:.3f} s dropped: the fold was cancelled before it started")
+
+
+def test_a_fold_never_announced_fails_naming_it(rig):
+    """A close and its targets with no /fold/active for them: the fold fails with the reason
+    (it used to run and report success for a fold named '')."""
+    r = rig
+    t0 = (max(_now(r), getattr(r, "streamed_until", 0)) // DT_NS + 100) * DT_NS  # 1 s of wall time ahead
+    before = len(r.results)
+    _command(r, t0, 0.0)
+    time.sleep(0.2)  # the close is pending (not yet due): its targets are taken
+    stamps = [t0 + k * DT_NS for k in range(26)]
+    _targets(r, stamps, [[0.1 + 0.002 * k, 0.0, 0.05] for k in range(26)])
+    r.streamed_until = stamps[-1]
+    _command(r, stamps[-1], 0.08)
+    res = _result(r, before)
+    assert not res.success and "no fold spec was announced" in res.reason, (res.success, res.reason)

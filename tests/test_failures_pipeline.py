@@ -30,7 +30,7 @@ def _wait_moving(poses, timeout=60.0):
 def pipeline():
     overrides = {"fold_planner_node": {"selection": "parameter", "duration": 4.0},
                  "kinematic_robot_node": {"real_time_factor": 1.0},
-                 "trajectory_node": {"stall_timeout": 3.0, "failure_report_wait": 2.0}}
+                 "trajectory_node": {"stall_timeout": 3.0, "failure_report_wait": 2.0, "lookahead": 2.0}}
     with pytest.MonkeyPatch.context() as mp, running_pipeline(mp, DOMAIN, "kinematic", overrides,
                                                                "test_failures_pipeline", check_alive=False) as pair:
         launcher, client = pair
@@ -53,6 +53,28 @@ def test_cancelled_fold_is_a_failure(pipeline):
     res = client.wait_result("left_sleeve", 60, after=before)
     assert not res.success, res
     assert "cancelled" in res.reason or "before the end of the planned motion" in res.reason, res.reason
+
+
+def test_a_cancel_after_the_whole_motion_was_sent_changes_nothing(pipeline):
+    """With a 2 s lookahead every target of a 4 s fold is sent once 2 s of it have run; a cancel
+    after that cannot stop the backend, so the fold ends as it would have, with one /fold/result
+    (trajectory_node used to report the cancel as a second, failed result for the same fold)."""
+    launcher, client, poses = pipeline
+    spec = client.plan("left_sleeve", execute=False).spec
+    before = client.result_count()
+    handle = client.start_goal(spec)
+    assert handle.accepted
+    n0 = len(poses)
+    deadline = time.monotonic() + 60
+    while len(poses) < n0 + 65:  # 2.6 s of the motion at 0.04 s a step: all of it sent
+        assert time.monotonic() < deadline, "the backend did not step"
+        time.sleep(0.02)
+    client.cancel(handle)
+    res = client.wait_result("left_sleeve", 60, after=before)
+    assert res.success, res.reason
+    time.sleep(3.0)  # longer than failure_report_wait: a second result would have come
+    names = [r.fold_name for r in client.results[before:]]
+    assert names == ["left_sleeve"], names
 
 
 def test_killed_backend_gives_a_failed_result(pipeline):

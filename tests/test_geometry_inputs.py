@@ -55,3 +55,14 @@ def test_fold_lines_are_checked():
                           (dict(point=[math.nan, 0.0]), "finite")]:
         with pytest.raises(ValueError, match=words):
             FoldLine(**{**dict(name="left_side", point=[0.1, 0.0], normal=[1.0, 0.0]), **kwargs})
+
+
+def test_pose_quaternions_are_normalised_or_refused():
+    """A quaternion of huge components is normalised (its plain norm overflows to inf, which
+    made it the zero quaternion); a zero or NaN one is refused."""
+    q = Pose(np.zeros(3), [1e200, 0.0, 0.0, 1e200]).quaternion
+    np.testing.assert_allclose(q, [2 ** -0.5, 0.0, 0.0, 2 ** -0.5])
+    np.testing.assert_allclose(Pose(np.zeros(3), [0.0, 0.0, 0.0, 3.0]).quaternion, [0, 0, 0, 1])
+    for bad in ([0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1e-12], [np.nan, 0.0, 0.0, 1.0]):
+        with pytest.raises(ValueError):
+            Pose(np.zeros(3), bad)

@@ -161,3 +161,35 @@ def test_keypoints_older_than_the_last_result_do_not_bring_their_folds(monkeypat
         node.destroy_node()
     finally:
         rclpy.shutdown(context=ctx)
+
+
+def test_setting_table_dir_reloads_the_tables(monkeypatch, tmp_path):
+    """`table_dir` set at run time takes effect: a selector that failed to load (no tables there)
+    is loaded again from the new directories (it was cached for the node's life, the set
+    reported as successful without effect)."""
+    import sys
+    from pathlib import Path
+
+    from rclpy.parameter import Parameter
+
+    from clothfold_ros.nodes.fold_planner_node import FoldPlannerNode
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_lookup_select import _bowl, _table, _write_table_dir
+
+    pts = np.arange(0, 134, 3)
+    _write_table_dir(tmp_path / "tables" / "shape1", _table("shape1", _bowl(66)[pts], points=pts))
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-p", "selection:=table", "-p", f"table_dir:={tmp_path / 'none'}"], context=ctx,
+               domain_id=189)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+    try:
+        node = FoldPlannerNode()
+        with pytest.raises(RuntimeError, match="selector unavailable.*none"):
+            node.selector()
+        assert node.set_parameters([Parameter("table_dir", value=str(tmp_path / "tables"))])[0].successful
+        assert sorted(node.selector().tables) == ["shape1"]
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)

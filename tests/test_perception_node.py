@@ -206,6 +206,26 @@ def test_cloud_from_msg_round_trip_and_errors():
         cloud_from_msg(m)
 
 
+
+def test_cloud_from_msg_reads_organised_clouds_with_padded_rows():
+    """An organised cloud (height 5, width 10) whose rows are padded to row_step (as camera
+    drivers align them): every row's points, not the bytes after the first row read as points."""
+    pts = np.random.default_rng(1).normal(size=(50, 3))
+    m = rc.mesh_points(pts, 0)
+    step, pad = m.point_step, 24
+    rows = bytes(m.data)
+    m.height, m.width, m.row_step = 5, 10, 10 * step + pad
+    m.data = b"".join(rows[r * 10 * step:(r + 1) * 10 * step] + bytes(pad) for r in range(5))
+    np.testing.assert_allclose(cloud_from_msg(m), pts.astype(np.float32))
+    m.row_step = 10 * step - 1
+    with pytest.raises(ValueError, match="row_step"):
+        cloud_from_msg(m)
+    m = rc.mesh_points(pts, 0)
+    m.fields[2].offset = m.point_step - 2
+    with pytest.raises(ValueError, match="does not fit"):
+        cloud_from_msg(m)
+
+
 def test_a_replayed_mid_fold_state_never_replaces_newer_keypoints(monkeypatch):
     """The fold's final cloth state may be handled between its result and the replay of the
     state skipped mid-fold; the replay must then be dropped, or the latest /keypoints would be
@@ -422,6 +442,29 @@ def test_a_fold_without_result_is_given_up_by_the_clock(monkeypatch):
         node.on_result(FoldResult(header=rc.header(16 * S + int(STALE_AFTER * S)), fold_name=spec.name,
                                   success=True, loss=0.004))
         assert [f.name for f in node.folds] == [spec.name] and node.failed is None
+    finally:
+        sim.close()
+
+
+def test_a_late_result_of_another_fold_leaves_the_running_fold_active(monkeypatch):
+    """A /fold/result of an earlier fold arriving while the next one runs does not end the running
+    fold: its states stay held until its own result, which then completes it."""
+    g = make_shirt(1, max_area=2e-3)
+    sim = _SimClock(monkeypatch, 181, "source:=cloth_state", "max_area:=0.002")
+    try:
+        node = sim.node
+        left = fold_spec("left_sleeve", g.keypoints())
+        right = fold_spec("right_sleeve", g.keypoints())
+        sim.set_clock(11 * S)
+        node.on_active(_planned(right, 10 * S))  # runs until 14.2 s
+        node.on_state(rc.cloth_state_to_msg(g.vertices, g.triangles, g.keypoint_ids, T, 12 * S))
+        node.on_result(FoldResult(header=rc.header(12 * S), fold_name=left.name, success=True, loss=0.004))
+        sim.spin(1.5)
+        assert node.active is not None and node.active.spec.name == right.name and sim.published == []
+        assert node.folds == []  # the late result without its announcement changes nothing
+        node.on_result(FoldResult(header=rc.header(14 * S), fold_name=right.name, success=True, loss=0.005))
+        sim.spin(5.0, until=lambda: len(sim.published) == 1)
+        assert sim.stamps() == [12 * S] and node.fold_names() == [right.name]
     finally:
         sim.close()
 

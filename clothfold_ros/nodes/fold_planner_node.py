@@ -97,6 +97,7 @@ class FoldPlannerNode(Node):
         self.create_service(Trigger, "~/reset", self.on_reset, callback_group=self.group)
         self._selector = None
         self._selector_error: str | None = None
+        self._selector_dirs: str | None = None  # the table_dir the selector was loaded from
         self.lock = threading.Lock()
         self.get_logger().info(f"ready: {common.PLAN_FOLD} (selection = {params.value(self, 'selection')})")
 
@@ -133,7 +134,11 @@ class FoldPlannerNode(Node):
 
     # -- selection -----------------------------------------------------------------------------
     def selector(self):
-        """The TableSelector (loaded once, lazily); raises RuntimeError with the reason."""
+        """The TableSelector (loaded lazily, again when `table_dir` is set to other directories);
+        raises RuntimeError with the reason."""
+        if params.value(self, "table_dir") != self._selector_dirs:
+            self._selector, self._selector_error = None, None
+            self._selector_dirs = params.value(self, "table_dir")
         if self._selector is None and self._selector_error is None:
             table_dir = resolve_dirs(params.value(self, "table_dir"))
             try:

@@ -92,27 +92,38 @@ def _heights_ordered(values: dict, changed: list[str]) -> str | None:
 
 def cloud_from_msg(m: PointCloud2) -> np.ndarray:
     """(N, 3) float64 x, y, z of a PointCloud2 (float32/float64 fields, any point_step,
-    organised or not; NaN points kept). ValueError for a malformed message."""
+    organised or not, rows padded to row_step or not; NaN points kept). ValueError for a
+    malformed message."""
     types = {PointField.FLOAT32: "f4", PointField.FLOAT64: "f8"}
     by_name = {f.name: f for f in m.fields}
     missing = [c for c in "xyz" if c not in by_name]
     if missing:
         raise ValueError(f"cloud has no field(s) {', '.join(missing)} (fields: {[f.name for f in m.fields]})")
-    n = int(m.width) * int(m.height)
+    width, height = int(m.width), int(m.height)
+    n = width * height
     if n == 0:
         return np.zeros((0, 3))
     step = int(m.point_step)
-    if len(m.data) < n * step:
-        raise ValueError(f"cloud data has {len(m.data)} bytes, {n} points of {step} bytes need {n * step}")
+    row = int(m.row_step) or width * step  # 0 from some unorganised producers: rows of width points
+    if step <= 0 or row < width * step:
+        raise ValueError(f"cloud row_step {m.row_step} is shorter than width {width} x point_step {step}")
+    need = (height - 1) * row + width * step
+    if len(m.data) < need:
+        raise ValueError(f"cloud data has {len(m.data)} bytes, {height} rows of {row} bytes need {need}")
+    data = bytes(m.data)
+    if row != width * step:  # padded rows: the points of each row, without its padding
+        data = b"".join(data[r * row:r * row + width * step] for r in range(height))
     endian = ">" if m.is_bigendian else "<"
     cols = []
     for c in "xyz":
         f = by_name[c]
         if f.datatype not in types:
             raise ValueError(f"cloud field {c} has datatype {f.datatype}; only FLOAT32/FLOAT64 are supported")
+        if not 0 <= f.offset <= step - np.dtype(types[f.datatype]).itemsize:
+            raise ValueError(f"cloud field {c} at offset {f.offset} does not fit a point of {step} bytes")
         dt = np.dtype({"names": [c], "formats": [endian + types[f.datatype]], "offsets": [f.offset],
                        "itemsize": step})
-        cols.append(np.frombuffer(bytes(m.data[:n * step]), dtype=dt, count=n)[c].astype(float))
+        cols.append(np.frombuffer(data[:n * step], dtype=dt, count=n)[c].astype(float))
     return np.column_stack(cols)
 
 
@@ -130,6 +141,7 @@ class KeypointNode(Node):
         self.prior = None  # the last good estimate (source = points)
         self.flat_area: float | None = None  # m^2, the flat shirt last fitted with no fold done (source = points)
         self.skipped = None  # (callback, msg) of the last cloth message skipped while a fold ran
+        self.held = 0  # cloth messages that arrived while the active fold ran (only the last is handled)
         self.published_ns = -1  # stamp of the newest keypoints published: an older cloth message is stale
         self._garment = None
         source = params.value(self, "source")
@@ -173,23 +185,36 @@ class KeypointNode(Node):
     # -- the folds done ----------------------------------------------------------------------------
     def on_active(self, msg: FoldSpecMsg) -> None:
         try:
-            self.active = rc.fold_spec_from_msg(msg)
+            active = rc.fold_spec_from_msg(msg)
         except ValueError as err:
             self.get_logger().error(f"bad /fold/active ignored: {err}")
             return
+        if self.active is not None and self.active.spec.name != active.spec.name:
+            self.get_logger().warn(f"fold {active.spec.name!r} announced while fold {self.active.spec.name!r} had no "
+                                   "result yet: that one's outcome stays unknown")
+        self.active, self.held = active, 0
         now, end = self.get_clock().now().nanoseconds, self.end_ns(self.active)
         if 0 < now and end < now:  # a latched announcement of a fold over before this node started
             self.give_up(f"it ended at {end * 1e-9:.3f} s, before its /fold/active reached this node (clock "
                          f"{now * 1e-9:.3f} s): its result was missed")
 
     def on_result(self, msg: FoldResult) -> None:
+        if self.active is not None and self.active.spec.name != msg.fold_name:
+            # a late result of an earlier fold while another one runs: the running fold stays
+            # active (its own result completes it) and its held cloth message stays held
+            self.get_logger().warn(f"result of fold {msg.fold_name!r} while fold {self.active.spec.name!r} is "
+                                   "executing: the fold history is not changed")
+            return
         active, self.active = self.active, None
         if active is None and self.given_up is not None and self.given_up.spec.name == msg.fold_name:
             active = self.given_up  # the result of a fold given up on came after all: its outcome is known
         self.given_up = None
         skipped, self.skipped = self.skipped, None
         if skipped is not None:  # the cloth message that came before this result (other topic, any order)
+            self.get_logger().info(f"{self.held} cloth message(s) arrived during fold {msg.fold_name}: the last "
+                                   "is handled now, the others are left out (the cloth was moving)")
             self.call_later((self.replay, skipped))
+        self.held = 0
         if active is None or active.spec.name != msg.fold_name:
             self.get_logger().warn(f"result of fold {msg.fold_name!r} without its /fold/active spec: "
                                    "the fold history is not changed")
@@ -259,8 +284,12 @@ class KeypointNode(Node):
         handled meanwhile (the fold's final state can arrive before its result or between the result
         and this replay): replaying it then would replace newer keypoints with older ones."""
         callback, msg = call
-        if rc.time_to_ns(msg.header.stamp) >= self.published_ns:
+        stamp = rc.time_to_ns(msg.header.stamp)
+        if stamp >= self.published_ns:
             callback(msg)
+        else:
+            self.get_logger().debug(f"held cloth message of {stamp * 1e-9:.3f} s dropped: keypoints of "
+                                    f"{self.published_ns * 1e-9:.3f} s were published meanwhile")
 
     def fold_names(self, extra=None) -> list[str]:
         return [s.name for s in self.folds] + ([extra.name] if extra is not None else [])
@@ -278,6 +307,7 @@ class KeypointNode(Node):
             return
         if self.folding(stamp):
             self.skipped = (self.on_points, msg)  # a fold is moving the cloth: handled after its result
+            self.held += 1
             return
         try:
             if msg.header.frame_id != params.value(self, "points_frame"):
@@ -359,6 +389,7 @@ class KeypointNode(Node):
             kp = state.keypoints()
             if self.folding(state.stamp_ns):
                 self.skipped = (self.on_state, msg)  # mid-fold: handled after the fold's result
+                self.held += 1
                 return
             if self.folds:
                 kp = visible_keypoints(self.garment(len(state.vertices)), state.vertices, self.folds)

@@ -28,6 +28,8 @@ class KinematicRobotNode(LockStepBackend):
 
     def on_close(self, gripper: int, pose: Pose) -> None:
         if not self.ls.closed:
+            if self.active is None:  # as cloth_sim_node: a result must name its fold
+                raise ValueError("a gripper closed but no fold spec was announced on /fold/active")
             self.steps = 0
         self.poses[gripper] = pose
 

@@ -246,13 +246,13 @@ class TrajectoryNode(Node):
         self.get_logger().error(f"published a failed {common.FOLD_RESULT} for {name}: {result.reason}")
         return result
 
-    def _wait_clock(self, until_ns: int, stall: float, handle) -> str | None:
-        """Wait until the clock reaches until_ns; reason on stall or cancel."""
+    def _wait_clock(self, until_ns: int, stall: float, handle, cancellable: bool = True) -> str | None:
+        """Wait until the clock reaches until_ns; reason on stall or (if cancellable) cancel."""
         last, since = self.now_ns(), time.monotonic()
         while self.now_ns() < until_ns:
             if not self.context.ok():
                 return "shutting down"
-            if handle.is_cancel_requested:
+            if cancellable and handle.is_cancel_requested:
                 return "cancelled"
             now = self.now_ns()
             if now != last:
@@ -320,9 +320,13 @@ class TrajectoryNode(Node):
             log.warn(f"fold {spec.name} cancelled; grippers open at {t_open * 1e-9:.3f} s")
             result = self._report_failure(handle, f"cancelled at {t_open * 1e-9:.3f} s")
             return ExecuteFold.Result(success=False, message="cancelled", result=result)
-        reason = self._wait_clock(t_open, stall, handle)
+        # every target and the open command are sent: the backend runs the fold to its end and
+        # reports it, so a cancel from here on cannot stop it (it would only add a failed result)
+        reason = self._wait_clock(t_open, stall, handle, cancellable=False)
         if reason:
             raise RuntimeError(f"waiting for the end of the motion: {reason}")
+        if handle.is_cancel_requested:
+            log.warn(f"fold {spec.name}: cancel requested after its whole motion was sent; it ran to its end")
         feedback.progress, feedback.time_from_start = 1.0, plan.duration
         handle.publish_feedback(feedback)
         result = FoldResult(header=rc.header(t_open), fold_name=spec.name, stage=plan.stage, success=True,
