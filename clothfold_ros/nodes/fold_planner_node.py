@@ -116,6 +116,10 @@ class FoldPlannerNode(Node):
             self.keypoints, self.keypoints_stamp, self.keypoint_folds = kp, rc.time_to_ns(msg.header.stamp), folds
 
     def on_result(self, msg: FoldResult) -> None:
+        if msg.fold_name not in FOLD_NAMES:
+            self.get_logger().warn(f"/fold/result of an unknown fold {msg.fold_name!r} ignored (known: "
+                                   f"{', '.join(FOLD_NAMES)})")
+            return
         with self.lock:
             if msg.fold_name in FOLD_NAMES:  # failed or not, the cloth may have moved
                 self.last_result_ns = max(self.last_result_ns, rc.time_to_ns(msg.header.stamp))
