@@ -190,7 +190,7 @@ def test_mcap_layout_schema_qos_hash_metadata(tmp_path):
             want = "transient_local" if ch.topic in ("/keypoints", "/fold/spec") else "volatile"
             assert [o["durability"] for o in offers][0] == want
         meta = {m.name: m.metadata for m in r.iter_metadata()}
-        info = yaml.safe_load(meta["rosbag2"]["serialized_metadata"])["rosbag2_bagfile_information"]
+        info = yaml.safe_load(meta["rosbag2"]["serialized_metadata"])  # the bare map, as rosbag2 writes and reads it
     assert info["version"] == 9 and info["storage_identifier"] == "mcap"
     assert info["message_count"] == len(written)
     assert info["starting_time"]["nanoseconds_since_epoch"] == written[0][3]

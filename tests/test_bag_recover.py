@@ -157,3 +157,53 @@ def test_damaged_summary_or_footer_is_a_bag_error_never_wrong_counts(bag, tmp_pa
         with pytest.raises(BagError, match="damaged|truncated"):
             _values(path)
     assert _values(bag) == expected
+
+
+def test_broken_bag_directories_and_tiny_files_are_bag_errors(bag, tmp_path):
+    """From a review of broken files: metadata.yaml naming a file twice (counted twice before),
+    a file outside the bag, a string instead of a list (read character by character), bytes
+    that are not UTF-8 (a raw UnicodeDecodeError); a file of the magic twice (a raw OSError)."""
+    import shutil
+
+    d = tmp_path / "dirbag"
+    d.mkdir()
+    shutil.copy(bag, d / "dirbag_0.mcap")
+    good = "rosbag2_bagfile_information:\n  version: 9\n  storage_identifier: mcap\n  relative_file_paths: [dirbag_0.mcap]\n"
+    (d / "metadata.yaml").write_text(good)
+    assert len(_values(d)) == N
+    for listing, words in [("[dirbag_0.mcap, dirbag_0.mcap]", "twice"), (f"[{bag}]", "inside the bag directory"),
+                           ("[../x.mcap]", "inside the bag directory"), ("dirbag_0.mcap", "list of file names")]:
+        (d / "metadata.yaml").write_text(good.replace("[dirbag_0.mcap]", listing))
+        with pytest.raises(BagError, match=words):
+            BagReader(d)
+    (d / "metadata.yaml").write_bytes(b"rosbag2_bagfile_information: \xff\xfe\n")
+    with pytest.raises(BagError, match="not a rosbag2 metadata file"):
+        BagReader(d)
+    tiny = tmp_path / "tiny.mcap"
+    tiny.write_bytes(b"\x89MCAP0\r\n" * 2)
+    with pytest.raises(BagError, match="truncated"):
+        BagReader(tiny)
+
+
+def test_recover_drops_foreign_encodings_and_keeps_topics_with_unreadable_qos(tmp_path):
+    """A channel that is not ROS 2 encoded (a JSON schema) is not relabelled as CDR: its messages
+    are dropped and counted; a channel whose QoS metadata cannot be parsed is recovered without
+    QoS (its bad QoS failed the whole recovery and left an empty bag behind)."""
+    from mcap.writer import Writer
+
+    src = tmp_path / "mixed.mcap"
+    with open(src, "wb") as f:
+        w = Writer(f)
+        w.start(profile="ros2", library="test")
+        ros = w.register_schema("std_msgs/msg/Int32", "ros2msg", b"int32 data")
+        js = w.register_schema("thing", "jsonschema", b"{}")
+        good = w.register_channel("/count", "cdr", ros, {"offered_qos_profiles": "- not: a qos profile"})
+        foreign = w.register_channel("/json", "json", js)
+        for i in range(5):
+            w.add_message(good, T0 + i, serialize_message(Int32(data=i)), T0 + i)
+            w.add_message(foreign, T0 + i, b"{}", T0 + i)
+        w.finish()
+    report = recover(src, tmp_path / "out.mcap")
+    assert report.messages == 5 and report.foreign == {"/json": 5} and report.qos_lost == ["/count"]
+    assert "not ROS 2 encoded" in report.summary() and "QoS metadata unreadable" in report.summary()
+    assert _values(tmp_path / "out.mcap") == list(range(5))

@@ -50,6 +50,8 @@ def bag_info(path: str | os.PathLike) -> str:
             lines.append(f"  {name:<{width}}  {t.type}  count {t.message_count}  qos {_qos_text(t)}  "
                          f"hash {t.type_hash[:20] + '...' if t.type_hash else 'none'}")
         custom = meta.get("custom_data") or {}
+        if not isinstance(custom, dict):
+            custom = {"(not a map)": custom}
         for key, value in sorted(custom.items()):
             lines.append(f"custom_data {key}: {value}")
     return "\n".join(lines)

@@ -3,7 +3,7 @@
 One bag is one MCAP file in the rosbag2 layout: profile ``ros2``, schemas ``pkg/msg/Type``
 (encoding ``ros2msg``), channels with encoding ``cdr`` and metadata
 ``offered_qos_profiles`` + ``topic_type_hash``, and a ``rosbag2`` metadata record holding
-``serialized_metadata`` (the metadata.yaml content, version 9). Times are integer ns.
+``serialized_metadata`` (the metadata.yaml map, version 9, without its top key). Times are integer ns.
 """
 from __future__ import annotations
 
@@ -66,5 +66,12 @@ def bag_metadata(topics: list[TopicInfo], files: list[tuple[str, int, int, int]]
 
 
 def dump_metadata(info: dict) -> str:
-    """YAML text of metadata.yaml / the ``serialized_metadata`` value (top key included)."""
+    """YAML text of metadata.yaml: the map under its ``rosbag2_bagfile_information`` key."""
     return yaml.safe_dump({"rosbag2_bagfile_information": info}, default_flow_style=False, sort_keys=False)
+
+
+def dump_metadata_record(info: dict) -> str:
+    """YAML text of the MCAP ``rosbag2`` record's ``serialized_metadata``: the bare map, as
+    rosbag2's MCAP plugin writes it (``convert<BagMetadata>::encode``) and reads it back (a
+    ``version`` key at the top; under the file's top key `ros2 bag info` would find none)."""
+    return yaml.safe_dump(info, default_flow_style=False, sort_keys=False)

@@ -74,9 +74,17 @@ def bag_files(path: str | os.PathLike) -> list[Path]:
     if meta.is_file():
         try:
             info = (yaml.safe_load(meta.read_text(encoding="utf-8")) or {})["rosbag2_bagfile_information"]
-            files = [p / f for f in info["relative_file_paths"]]
-        except (yaml.YAMLError, KeyError, TypeError) as err:
-            raise BagError(f"{meta}: not a rosbag2 metadata file ({err})") from None
+            names = info["relative_file_paths"]
+        except (yaml.YAMLError, KeyError, TypeError, UnicodeDecodeError, OSError) as err:
+            raise BagError(f"{meta}: not a rosbag2 metadata file ({type(err).__name__}: {err})") from None
+        if not (isinstance(names, list) and names and all(isinstance(f, str) for f in names)):
+            raise BagError(f"{meta}: relative_file_paths must be a list of file names, got {names!r}")
+        if len(set(names)) != len(names):
+            raise BagError(f"{meta}: relative_file_paths lists a file twice: {names}")
+        files = [p / f for f in names]
+        outside = [f for f in names if Path(f).is_absolute() or p.resolve() not in (p / f).resolve().parents]
+        if outside:
+            raise BagError(f"{meta}: relative_file_paths must name files inside the bag directory, not {outside}")
         if info.get("storage_identifier", "mcap") != "mcap":
             raise BagError(f"{p}: storage {info.get('storage_identifier')!r} is not supported, only mcap")
     else:
@@ -102,7 +110,7 @@ class _File:
             self.stream.close()
             raise BagError(f"{path}: not an MCAP file (bad magic {head[:8]!r})")
         self.stream.seek(max(0, self.size - 8))
-        if self.size < 16 or self.stream.read(8) != MAGIC:
+        if self.size < 16 + FOOTER_LEN or self.stream.read(8) != MAGIC:  # magic, footer record, magic
             self.stream.close()
             raise BagError(f"{path}: truncated, it has no footer (the recorder was killed or is still running); "
                            f"{RECOVER_HINT}")
@@ -217,7 +225,10 @@ class BagReader:
             data = yaml.safe_load(raw) or {}
         except yaml.YAMLError as err:
             raise BagError(f"{self.path}: rosbag2 metadata record is not YAML ({err})") from None
-        return data.get("rosbag2_bagfile_information", data) if isinstance(data, dict) else {}
+        inner = data.get("rosbag2_bagfile_information", data) if isinstance(data, dict) else None
+        if not isinstance(inner, dict):  # the bare map (rosbag2's) or under its file key (ours before 2026-12-06)
+            raise BagError(f"{self.path}: rosbag2 metadata record holds no metadata map ({type(inner).__name__})")
+        return inner
 
     def messages(self, topics: Iterable[str] | None = None, start_ns: int | None = None,
                  end_ns: int | None = None) -> Iterator[BagMessage]:

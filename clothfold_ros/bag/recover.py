@@ -9,6 +9,7 @@ metadata. Nothing is dropped silently: the report counts what was kept and lost.
 from __future__ import annotations
 
 import os
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,7 +30,9 @@ class RecoveryReport:
     source before / after the last good record; complete: the source already had its
     summary (nothing was lost); reason: why reading stopped ("" if it reached the end);
     topics: recovered messages per topic; orphans: messages dropped because their channel
-    or schema record was lost.
+    or schema record was lost; foreign: messages dropped per topic whose encoding is not ROS 2's
+    (schema ``ros2msg``, messages ``cdr``: copied, they would be read as CDR); qos_lost: topics
+    whose QoS metadata could not be parsed (recovered with none).
     """
 
     source: Path
@@ -42,6 +45,8 @@ class RecoveryReport:
     reason: str = ""
     topics: dict[str, int] = field(default_factory=dict)
     orphans: int = 0
+    foreign: dict[str, int] = field(default_factory=dict)
+    qos_lost: list[str] = field(default_factory=list)
 
     def summary(self) -> str:
         """Human-readable multi-line report."""
@@ -54,6 +59,10 @@ class RecoveryReport:
                          f"(the unfinished chunk and the summary); stopped because: {self.reason or 'end of file'}")
         if self.orphans:
             lines.append(f"dropped {self.orphans} messages whose channel/schema record was lost")
+        for topic, n in sorted(self.foreign.items()):
+            lines.append(f"dropped {n} messages of {topic}: not ROS 2 encoded (schema ros2msg, messages cdr)")
+        if self.qos_lost:
+            lines.append(f"QoS metadata unreadable, recovered without it: {', '.join(sorted(self.qos_lost))}")
         for topic, n in sorted(self.topics.items()):
             lines.append(f"  {topic}: {n}")
         return "\n".join(lines)
@@ -119,17 +128,28 @@ def _reason(err: BaseException, size: int, offset: int) -> str:
 
 def _write(dst: Path, schemas: dict[int, Schema], channels: dict[int, Channel], kept: list[Message],
            report: RecoveryReport, overwrite: bool) -> None:
+    """Write the recovered bag; on any error nothing is left at ``dst`` (no empty, valid-looking bag)."""
     writer = BagWriter(dst, overwrite=overwrite, max_chunk_age=None)
     try:
         for ch in channels.values():
             schema = schemas.get(ch.schema_id)
             if schema is None:
                 continue
-            writer.add_topic(ch.topic, schema.name, parse_qos(ch.metadata.get("offered_qos_profiles", "")),
-                             definition=schema.data.decode("utf-8", "replace"),
+            if schema.encoding != "ros2msg" or ch.message_encoding != "cdr":
+                report.foreign[ch.topic] = 0
+                continue
+            try:
+                qos = parse_qos(ch.metadata.get("offered_qos_profiles", ""))
+            except BagError:
+                qos = []
+                report.qos_lost.append(ch.topic)
+            writer.add_topic(ch.topic, schema.name, qos, definition=schema.data.decode("utf-8", "replace"),
                              type_hash=ch.metadata.get("topic_type_hash", ""))
         for msg in sorted(kept, key=lambda m: m.log_time):
             ch = channels.get(msg.channel_id)
+            if ch is not None and ch.topic in report.foreign:
+                report.foreign[ch.topic] += 1
+                continue
             if ch is None or ch.topic not in writer.topics:
                 report.orphans += 1
                 continue
@@ -137,8 +157,16 @@ def _write(dst: Path, schemas: dict[int, Schema], channels: dict[int, Channel], 
             report.topics[ch.topic] = report.topics.get(ch.topic, 0) + 1
             report.messages += 1
         writer.custom_data["recovered_from"] = str(report.source)
-    finally:
-        writer.close()
+    except BaseException:
+        try:
+            writer.close()
+        finally:
+            if dst.is_dir():
+                shutil.rmtree(dst)
+            else:
+                dst.unlink(missing_ok=True)
+        raise
+    writer.close()
 
 
 __all__ = ["RecoveryReport", "recover"]

@@ -189,11 +189,12 @@ class BagWriter:
         """Finish the file: rosbag2 metadata record, summary, footer; metadata.yaml for a directory."""
         if self.closed:
             return
-        text = layout.dump_metadata(self.metadata())
+        info = self.metadata()
+        text = layout.dump_metadata(info)
         try:
             self.flush()
             self.closed = True
-            self._mcap.add_metadata(layout.METADATA_NAME, {layout.METADATA_KEY: text})
+            self._mcap.add_metadata(layout.METADATA_NAME, {layout.METADATA_KEY: layout.dump_metadata_record(info)})
             self._mcap.finish()
         finally:
             self._stream.close()
