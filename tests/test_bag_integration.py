@@ -235,3 +235,32 @@ def test_replay_truncated_bag_is_a_clear_error(procs, ros_env, tmp_path):
                        text=True, env=ros_env, cwd=ROOT, timeout=60)
     assert p.returncode == 1
     assert "Traceback" not in p.stderr and "truncated" in p.stderr and "clothfold bag recover" in p.stderr
+
+
+def test_a_bag_that_cannot_be_closed_is_reported_and_fails_the_recorder(tmp_path, monkeypatch, capsys):
+    """A close that fails (e.g. a full disk) was swallowed at shutdown: no 'bag closed' line, no
+    error, exit code 0, a file without summary. Now it names the bag and the recover command
+    and raises ShutdownFailure, for which `common.run` exits 1."""
+    import rclpy
+
+    from clothfold_ros.nodes import common
+    from clothfold_ros.nodes.recorder_node import RecorderNode
+
+    out = tmp_path / "x.mcap"
+    ctx = rclpy.Context()
+    rclpy.init(args=[], context=ctx, domain_id=193)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+    try:
+        node = RecorderNode(str(out), topics=["/nothing"], tf=False)
+
+        def full_disk():
+            raise OSError(28, "No space left on device")
+
+        monkeypatch.setattr(node.writer, "close", full_disk)
+        with pytest.raises(common.ShutdownFailure, match="not closed"):
+            node.destroy_node()
+        err = capsys.readouterr().err
+        assert "bag NOT closed" in err and f"clothfold bag recover {out}" in err
+    finally:
+        rclpy.try_shutdown(context=ctx)

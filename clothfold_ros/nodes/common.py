@@ -53,6 +53,11 @@ CLOCK_QOS = _qos(10)  # /clock publisher (reliable; rclpy's best-effort subscrib
 
 
 # -- running a node -------------------------------------------------------------------------
+class ShutdownFailure(RuntimeError):
+    """Raised by a node's destroy_node when it could not finish its work (e.g. close its bag):
+    `run` then reports it and exits 1 (other errors of a context torn down are ignored)."""
+
+
 def run(factory: Callable[[], Node], args: list[str] | None = None, threads: int = 1) -> int:
     """rclpy.init, build the node, spin until SIGINT/SIGTERM, clean shutdown.
 
@@ -87,7 +92,10 @@ def run(factory: Callable[[], Node], args: list[str] | None = None, threads: int
         if node is not None:
             try:
                 node.destroy_node()
-            except Exception:
+            except ShutdownFailure as err:  # work the node could not finish (a bag not closed): exit 1
+                print(f"[{getattr(factory, '__name__', 'node')}] shutdown failed: {err}", file=sys.stderr, flush=True)
+                code = code or 1
+            except Exception:  # noqa: BLE001 - rclpy tearing down a context already shut down
                 pass
         rclpy.try_shutdown()
     return code

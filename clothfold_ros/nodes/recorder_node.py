@@ -34,7 +34,7 @@ from ..bag import BagError, BagWriter, from_profile, message_definition
 from ..bag.tf import (TF_QOS, TF_STATIC_QOS, TF_STATIC_TOPIC, TF_TOPIC, TF_TYPE, Transform, encode_tf_message,
                       tf_definition)
 from . import conversions as rc
-from .common import run
+from .common import ShutdownFailure, run
 
 SUBSCRIBE_DEPTH = 1000  # queue of received, not yet written messages per topic
 ROOT_TRANSFORM = ("world", "table")  # /tf_static: the fixed root above the table frame every message uses
@@ -179,7 +179,13 @@ class RecorderNode(Node):
     def destroy_node(self) -> None:
         """Close the bag (complete file with summary) and report."""
         if not self.writer.closed:
-            self.writer.close()
+            try:
+                self.writer.close()
+            except Exception as err:  # noqa: BLE001 - e.g. disk full: say so, the file lacks its summary
+                print(f"bag NOT closed: {self.output}: {type(err).__name__}: {err}; its messages up to the last "
+                      f"complete chunk: clothfold bag recover {self.output}", file=sys.stderr, flush=True)
+                super().destroy_node()
+                raise ShutdownFailure(f"bag {self.output} not closed: {err}") from err
             for topic, reason in sorted(self.skipped.items()):
                 print(f"recorder: skipped {topic}: {reason}", file=sys.stderr, flush=True)
             if self.wanted:
