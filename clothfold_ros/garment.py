@@ -207,14 +207,20 @@ class Garment:
         return np.asarray(loop, dtype=np.int64)
 
 
+#: m^2, the meshes a shirt may be built with: 1e-6 is about 600K triangles (the study's 5e-5 is 12K),
+#: 0.1 a handful; beyond that Triangle fails or the mesh is no shirt
+MAX_AREA_RANGE = (1e-6, 0.1)
+
+
 def make_shirt(shape: ShirtShape | int = 1, max_area: float = DEFAULT_MAX_AREA, z: float = 0.0) -> Garment:
     """Mesh the shirt outline (constrained quality Delaunay, max triangle area `max_area`
     m^2) lying flat at height `z` m. Outline points are vertices 0..12."""
     import triangle
 
     s = _as_shape(shape)
-    if not (math.isfinite(max_area) and max_area > 0):
-        raise ValueError(f"max_area must be a positive area in m^2, got {max_area}")
+    if not (math.isfinite(max_area) and MAX_AREA_RANGE[0] <= max_area <= MAX_AREA_RANGE[1]):
+        raise ValueError(f"max_area must be a triangle area in m^2 within {MAX_AREA_RANGE[0]:g}..{MAX_AREA_RANGE[1]:g}, "
+                         f"got {max_area}")
     if not math.isfinite(z):
         raise ValueError(f"z must be finite, got {z}")
     outline = shirt_outline(s)

@@ -15,8 +15,10 @@ class Pose:
     quaternion: np.ndarray
 
     def __post_init__(self) -> None:
-        p = np.asarray(self.position, dtype=float).reshape(3)
-        q = np.asarray(self.quaternion, dtype=float).reshape(4)
+        p, q = np.asarray(self.position, dtype=float), np.asarray(self.quaternion, dtype=float)
+        if p.size != 3 or q.size != 4:
+            raise ValueError(f"pose needs a 3-vector position and a 4-vector quaternion, got sizes {p.size} and {q.size}")
+        p, q = p.reshape(3), q.reshape(4)
         if not (np.all(np.isfinite(p)) and np.all(np.isfinite(q))):
             raise ValueError(f"pose has non-finite values: position={p}, quaternion={q}")
         scale = np.max(np.abs(q))  # normalised in two steps: a norm of huge components overflows to inf
@@ -43,6 +45,8 @@ class Pose:
             raise ValueError(f"gripper x axis must be finite and non-zero, got {x}")
         x = x / np.linalg.norm(x)
         z = np.asarray(z_axis, float)
+        if not (z.shape == (3,) and np.all(np.isfinite(z))):
+            raise ValueError(f"gripper z axis must be a finite 3-vector, got {z}")
         z = z - x * (x @ z)
         nz = np.linalg.norm(z)
         if nz < 1e-9:

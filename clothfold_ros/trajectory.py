@@ -97,7 +97,13 @@ class GripperPath:
         self.start, self.end, self.control, self.duration = start, end, c, float(duration)
         self._ctrl = np.stack([start.position, c, end.position])
         u = np.linspace(0.0, 1.0, _ARC_SAMPLES)
-        seg = np.linalg.norm(np.diff(self.curve(u), axis=0), axis=1)
+        pts = self.curve(u)
+        lowest = int(np.argmin(pts[:, 2]))
+        if pts[lowest, 2] < -1e-9:  # the table top is z = 0
+            raise ValueError(f"gripper path dips to z = {pts[lowest, 2]:.4g} m, below the table top, at "
+                             f"{100 * u[lowest]:.0f} % of its Bezier parameter (start z {start.position[2]:.4g} m, "
+                             f"control z {c[2]:.4g} m, end z {end.position[2]:.4g} m)")
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         self._u = u
         self._arc = np.concatenate([[0.0], np.cumsum(seg)])  # m, arc length at u
 
@@ -124,7 +130,10 @@ class GripperPath:
 
     def progress(self, t: np.ndarray | float) -> np.ndarray:
         """Fraction of the path done at time t (s), in [0, 1]."""
-        return min_jerk(np.asarray(t, dtype=float) / self.duration)
+        t = np.asarray(t, dtype=float)
+        if not np.all(np.isfinite(t)):
+            raise ValueError(f"path time must be finite, got {t}")
+        return min_jerk(t / self.duration)
 
     def _param(self, t: np.ndarray | float) -> np.ndarray:
         return np.interp(self.progress(t) * self.length, self._arc, self._u) if self.length > 0 \

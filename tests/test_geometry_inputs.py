@@ -66,3 +66,50 @@ def test_pose_quaternions_are_normalised_or_refused():
     for bad in ([0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1e-12], [np.nan, 0.0, 0.0, 1.0]):
         with pytest.raises(ValueError):
             Pose(np.zeros(3), bad)
+
+
+def test_core_refuses_bad_geometry_and_timing_with_the_reason():
+    """From a review of the core's inputs: each of these passed silently (a NaN path, a path
+    under the table, a mesh of ~1e11 triangles asked of Triangle) or failed far from the cause."""
+    from clothfold_ros.trajectory import GripperPath
+
+    down = np.array([0.0, 0.0, 0.0, 1.0])
+    a, b = Pose([0.0, 0.0, 0.01], down), Pose([0.2, 0.0, 0.05], down)
+    with pytest.raises(ValueError, match="dips to z = .* below the table top"):
+        GripperPath(a, b, control=[0.1, 0.0, -0.5], duration=4.0)
+    path = GripperPath(a, b, control=[0.1, 0.0, 0.2], duration=4.0)
+    np.testing.assert_allclose(path.position(4.0), b.position)
+    with pytest.raises(ValueError, match="path time must be finite"):
+        path.position(math.nan)
+    with pytest.raises(ValueError, match="z axis must be a finite 3-vector"):
+        Pose.from_axes(np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, math.nan, 1.0]))
+    with pytest.raises(ValueError, match="3-vector position"):
+        Pose(np.zeros(2), down)
+    for area in (1e-19, 1e-9, 0.5):
+        with pytest.raises(ValueError, match="max_area must be a triangle area"):
+            make_shirt(1, max_area=area)
+
+
+def test_scenarios_and_features_are_checked():
+    from clothfold_ros.lookup.scenario import (SCENARIOS, Scenario, definition_features, features, flat_keypoints,
+                                               normalized_distance)
+
+    for kwargs, words in [({"shape": 7}, "shape must be one of"), ({"folds": ()}, "folds must be one or more"),
+                          ({"folds": ("collar",)}, "folds must be one or more"), ({"friction": -0.1}, "friction"),
+                          ({"duration": 0.0}, "duration"), ({"material": "silk"}, "silk")]:
+        with pytest.raises(ValueError, match=words):
+            Scenario("x", "x", **kwargs)
+    with pytest.raises(ValueError, match="shape must be one of"):
+        flat_keypoints(7, "cotton")
+    kp = flat_keypoints(1, "cotton")
+    args = dict(fold_name="left_sleeve", keypoints=kp, material_name="cotton", friction=0.5, duration=4.0)
+    for extra, words in [({"grip": -1.0}, "grip distance"), ({"stage": -3}, "stage must be"),
+                         ({"stage": math.nan}, "stage must be"), ({"stage": 1.5}, "stage must be")]:
+        with pytest.raises(ValueError, match=words):
+            features(**args, **extra)
+    f = definition_features(SCENARIOS["shape1"])
+    assert normalized_distance(f, f) == 0.0
+    with pytest.raises(ValueError, match="lacks finite fold_type"):
+        normalized_distance(f, {**f, "fold_type": math.nan})
+    with pytest.raises(ValueError, match="lacks finite stage"):
+        normalized_distance({k: v for k, v in f.items() if k != "stage"}, f)

@@ -70,3 +70,41 @@ def test_defaults_and_valid_edges_construct_unchanged():
         assert getattr(cfg, k) is v, k
     for backend in ("pardiso", "auto"):
         SimConfig(linear_solver=backend, psd_projection="clamp")
+
+
+def test_simulation_inputs_are_checked_before_any_step():
+    """A motion shorter than half a step (it was grasped, released and called a success), a NaN
+    or misshaped rest shape (NaN masses, then 'non-positive diagonal' at the first step), a NaN
+    fold target (found only after the whole fold) and an infinite settle time: ValueErrors that
+    name them."""
+    import math
+
+    import numpy as np
+    import pytest
+
+    from clothfold_ros.folding import fold_spec
+    from clothfold_ros.garment import make_shirt
+    from clothfold_ros.materials import material
+    from clothfold_ros.plan import FoldPlan
+    from clothfold_ros.sim.episode import FoldEpisode
+    from clothfold_ros.sim.runner import flat_start, run_plan
+    from clothfold_ros.sim.simulator import ClothSimulator
+
+    g = make_shirt(1, max_area=5e-3)
+    cotton = material("cotton")
+    spec = fold_spec("left_sleeve", g.keypoints())
+    with pytest.raises(ValueError, match="shorter than half a simulator step"):
+        run_plan(g, FoldPlan(spec, 0.5, 30.0, duration=0.01, settle_time=0.0), cotton, 0.5)
+    x = flat_start(g, cotton)
+    bad = x.copy()
+    bad[3, 0] = math.nan
+    with pytest.raises(ValueError, match="rest shape .* must be finite"):
+        ClothSimulator(x, g.triangles, cotton, 0.5, rest=bad)
+    with pytest.raises(ValueError, match="rest shape .* must be shape"):
+        ClothSimulator(x, g.triangles, cotton, 0.5, rest=x[:-1])
+    sim = ClothSimulator(x, g.triangles, cotton, 0.5)
+    with pytest.raises(ValueError, match="fold target .* must be finite"):
+        FoldEpisode(sim, spec, bad)
+    with pytest.raises(ValueError, match="settle_time must be finite"):
+        FoldEpisode(sim, spec, x, settle_time=math.inf)
+    assert FoldEpisode(sim, spec, x).target.shape == x.shape

@@ -54,6 +54,19 @@ class Scenario:
     folds: tuple[str, ...] = ("left_sleeve",)
     after: str | None = None
 
+    def __post_init__(self) -> None:
+        if self.shape not in SHAPES:
+            raise ValueError(f"scenario {self.name!r}: shape must be one of {sorted(SHAPES)}, got {self.shape!r}")
+        material(self.material)  # ValueError naming the known materials
+        if not (math.isfinite(self.friction) and self.friction >= 0):
+            raise ValueError(f"scenario {self.name!r}: friction must be finite and >= 0, got {self.friction}")
+        if not (math.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"scenario {self.name!r}: duration must be > 0 s, got {self.duration}")
+        unknown = [f for f in self.folds if f not in STAGE_OF_FOLD]
+        if not self.folds or unknown:
+            raise ValueError(f"scenario {self.name!r}: folds must be one or more of {', '.join(STAGE_OF_FOLD)}, "
+                             f"got {list(self.folds)}")
+
     @property
     def stage(self) -> int:
         return STAGE_OF_FOLD[self.folds[0]]
@@ -174,6 +187,10 @@ def features(*, fold_name: str, keypoints: Mapping[str, np.ndarray], material_na
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be > 0 s, got {duration}")
     mat = material(material_name)
+    if grip is not None and not (math.isfinite(grip) and grip >= 0):
+        raise ValueError(f"grip distance must be finite and >= 0 m, got {grip}")
+    if stage is not None and not (float(stage).is_integer() and stage >= 0):
+        raise ValueError(f"stage must be a whole number >= 0 (a stage group), got {stage}")
     sides = [fold_name.split("_")[0]] if kind == "sleeve" else ["left", "right"]
     ml = np.array([_sleeve_measures(keypoints, s) for s in sides])
     if grip is None:
@@ -201,6 +218,8 @@ def features(*, fold_name: str, keypoints: Mapping[str, np.ndarray], material_na
 
 def flat_keypoints(shape: int, material_name: str) -> dict[str, np.ndarray]:
     """Keypoints of the flat shirt preset lying at z = 2 t (no meshing needed)."""
+    if shape not in SHAPES:
+        raise ValueError(f"shape must be one of {sorted(SHAPES)}, got {shape!r}")
     xy = shirt_outline(SHAPES[shape])
     z = 2.0 * material(material_name).thickness
     return {n: np.array([p[0], p[1], z]) for n, p in zip(KEYPOINT_NAMES, xy)}
@@ -217,7 +236,12 @@ def definition_features(s: Scenario) -> dict[str, float]:
 
 
 def normalized_distance(a: Mapping[str, float], b: Mapping[str, float]) -> float:
-    """Euclidean distance between two feature dicts, each feature divided by its scale."""
+    """Euclidean distance between two feature dicts, each feature divided by its scale
+    (ValueError for a missing or non-finite feature)."""
+    for name, f in (("first", a), ("second", b)):
+        bad = [k for k in FEATURE_NAMES if k not in f or not math.isfinite(f[k])]
+        if bad:
+            raise ValueError(f"{name} feature set lacks finite {', '.join(bad)}")
     d = np.array([(a[k] - b[k]) / FEATURE_SCALES[k] for k in FEATURE_NAMES])
     return float(np.sqrt(d @ d))
 

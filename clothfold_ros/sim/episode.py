@@ -12,6 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..arrays import finite_array
 from ..folding import FoldSpec
 from ..loss import mean_vertex_distance
 from ..pose import Pose
@@ -37,10 +38,9 @@ class FoldEpisode:
     """Drives a ClothSimulator through one fold specification."""
 
     def __init__(self, sim: ClothSimulator, spec: FoldSpec, target: np.ndarray, settle_time: float = 0.2) -> None:
-        if target.shape != sim.x.shape:
-            raise ValueError(f"target shape {target.shape} does not match the cloth {sim.x.shape}")
-        if not settle_time >= 0:
-            raise ValueError(f"settle_time must be >= 0 s, got {settle_time}")
+        target = finite_array(target, "fold target (m)", sim.x.shape)  # the cloth's shape, or a clear error
+        if not 0 <= settle_time < float("inf"):
+            raise ValueError(f"settle_time must be finite and >= 0 s, got {settle_time}")
         self.sim = sim
         self.spec = spec
         self.target = np.asarray(target, dtype=float)

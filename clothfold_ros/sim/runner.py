@@ -64,6 +64,9 @@ def run_plan(
     sim = ClothSimulator(start, garment.triangles, material, friction, cfg, rest=flat_start(garment, material))
     episode = FoldEpisode(sim, plan.spec, target, plan.settle_time)
     n_motion = int(round(plan.duration / cfg.dt))
+    if n_motion < 1:
+        raise ValueError(f"the fold's motion ({plan.duration:g} s) is shorter than half a simulator step "
+                         f"(dt {cfg.dt:g} s): it would be grasped and released without moving")
     n_total = n_motion + int(np.ceil(plan.settle_time / cfg.dt - 1e-9))
     try:
         episode.grasp()

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from ..arrays import finite_array
 from ..materials import Material
 from ..pose import Pose
 from . import bending, membrane
@@ -79,7 +80,7 @@ class ClothSimulator:
             raise ValueError("triangles must be (M, 3) vertex ids into vertices")
         if not (np.isfinite(friction) and friction >= 0):
             raise ValueError(f"friction coefficient must be finite and >= 0, got {friction}")
-        rest = x.copy() if rest is None else np.asarray(rest, dtype=float)
+        rest = x.copy() if rest is None else finite_array(rest, "rest shape (m)", x.shape)
         self.material = material
         self.friction_coefficient = float(friction)
         self.triangles = tri
@@ -100,7 +101,7 @@ class ClothSimulator:
 
         # Lumped masses (kg): a third of each triangle's mass per vertex.
         vm = np.bincount(tri.ravel(), weights=np.repeat(area * material.areal_density / 3, 3), minlength=n)
-        if np.any(vm <= 0):
+        if not np.all(vm > 0):
             raise ValueError("mesh has vertices that belong to no triangle")
         self.vertex_mass = vm
         self._mass_dof = np.repeat(vm, 3)
