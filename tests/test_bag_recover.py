@@ -207,3 +207,16 @@ def test_recover_drops_foreign_encodings_and_keeps_topics_with_unreadable_qos(tm
     assert report.messages == 5 and report.foreign == {"/json": 5} and report.qos_lost == ["/count"]
     assert "not ROS 2 encoded" in report.summary() and "QoS metadata unreadable" in report.summary()
     assert _values(tmp_path / "out.mcap") == list(range(5))
+
+
+def test_recover_takes_a_killed_bag_directory(bag, tmp_path):
+    """A directory bag killed mid-recording has its MCAP file and no metadata.yaml yet: recover
+    takes the directory (it said 'no such file'), and refuses one with several files."""
+    d = tmp_path / "killed"
+    d.mkdir()
+    _cut(bag, d / "killed_0.mcap", bag.stat().st_size // 2)
+    report = recover(d, tmp_path / "fixed.mcap")
+    assert report.messages > 0 and _values(tmp_path / "fixed.mcap") == list(range(report.messages))
+    _cut(bag, d / "killed_1.mcap", 100)
+    with pytest.raises(BagError, match="exactly one"):
+        recover(d, tmp_path / "again.mcap")

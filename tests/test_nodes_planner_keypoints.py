@@ -193,3 +193,29 @@ def test_setting_table_dir_reloads_the_tables(monkeypatch, tmp_path):
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+def test_an_unusable_table_falls_back_to_the_parameters_only_when_asked(monkeypatch, tmp_path):
+    """selection table with no tables: refused with the reason, unless fallback_to_parameters,
+    which plans with height_ratio / tilt_deg."""
+    from rclpy.parameter import Parameter
+
+    from clothfold_ros.nodes.fold_planner_node import FoldPlannerNode
+
+    g = make_shirt(1, max_area=5e-3)
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-p", "selection:=table", "-p", f"table_dir:={tmp_path / 'none'}",
+                     "-p", "height_ratio:=0.377", "-p", "tilt_deg:=12.0"], context=ctx, domain_id=196)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+    try:
+        node = FoldPlannerNode()
+        node.on_keypoints(rc.keypoints_to_msg(g.keypoints(), 1 * S))
+        with pytest.raises(RuntimeError, match="table selection failed: lookup table selector unavailable .*none"):
+            node.plan("left_sleeve")
+        assert node.set_parameters([Parameter("fallback_to_parameters", value=True)])[0].successful
+        spec = node.plan("left_sleeve")
+        assert (spec.height_ratio, spec.tilt_deg) == (0.377, 12.0)
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)

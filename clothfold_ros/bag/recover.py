@@ -69,8 +69,15 @@ class RecoveryReport:
 
 
 def recover(source: str | os.PathLike, output: str | os.PathLike, overwrite: bool = False) -> RecoveryReport:
-    """Copy every message of ``source`` up to its last complete chunk into a complete bag ``output``."""
+    """Copy every message of ``source`` (an MCAP file, or a bag directory holding one) up to its
+    last complete chunk into a complete bag ``output``."""
     src, dst = Path(source), Path(output)
+    if src.is_dir():  # a bag directory killed mid-recording: its one MCAP file (metadata.yaml is written last)
+        files = sorted(src.glob("*.mcap"))
+        if len(files) != 1:
+            raise BagError(f"{src}: a bag directory to recover must hold exactly one *.mcap file, it holds "
+                           f"{len(files)}{': ' + ', '.join(f.name for f in files) if files else ''}; name the file")
+        src = files[0]
     if not src.is_file():
         raise BagError(f"{src}: no such file")
     if src.resolve() == dst.resolve():
