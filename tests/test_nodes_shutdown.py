@@ -31,6 +31,34 @@ def test_wait_set_error_at_shutdown_is_a_clean_exit(ros_env, monkeypatch, capfd)
     assert "fatal" not in capfd.readouterr().err
 
 
+def test_a_node_that_cannot_finish_at_shutdown_exits_1(ros_env, monkeypatch, capfd, tmp_path):
+    """The recorder whose bag cannot be closed (a full disk) raises ShutdownFailure from
+    destroy_node; `common.run` reports it and exits 1 (it exited 0, the failure swallowed)."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    from clothfold_ros.nodes import common
+    from clothfold_ros.nodes.recorder_node import RecorderNode
+
+    def spin_then_signal(self):
+        rclpy.shutdown()  # SIGINT
+        raise KeyboardInterrupt
+
+    def recorder():
+        node = RecorderNode(str(tmp_path / "x.mcap"), topics=["/nothing"], tf=False)
+
+        def full_disk():
+            raise OSError(28, "No space left on device")
+
+        node.writer.close = full_disk
+        return node
+
+    monkeypatch.setattr(SingleThreadedExecutor, "spin", spin_then_signal)
+    assert common.run(recorder, ["recorder_node"]) == 1
+    err = capfd.readouterr().err
+    assert "bag NOT closed" in err and "shutdown failed: bag" in err
+
+
 def test_replay_clock_skips_the_recorded_clock(ros_env, tmp_path):
     import rclpy
     from rclpy.serialization import serialize_message
