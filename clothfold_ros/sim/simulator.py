@@ -133,6 +133,11 @@ class ClothSimulator:
 
         if self.contact.intersects(self.x):
             raise ValueError("initial cloth state intersects itself or the table")
+        low = int(np.argmin(self.x[:, 2]))
+        if not self.x[low, 2] > self.contact.xi:  # the table barrier is infinite at the offset: no step could start
+            raise ValueError(f"initial cloth state: vertex {low} lies {self.x[low, 2] * 1e3:.4f} mm above the table, "
+                             f"within the contact offset {self.contact.xi * 1e3:.4f} mm (the cloth's thickness); "
+                             "start it higher (flat_start lays it at twice the thickness)")
 
     # -- grippers ------------------------------------------------------------------------
     def grasp(self, gripper: int, pose: Pose) -> np.ndarray:
