@@ -144,3 +144,32 @@ def test_with_no_fold_done_a_smaller_flat_shirt_is_a_new_shirt():
     assert state.start == "fresh" and state.folds == []
     assert flat_area(state.estimate.shape) < 0.8 * flat_area(prior.shape)
     assert np.median(errors_mm(state.estimate, small.keypoints(v))) < 5.0
+
+
+def test_bad_fold_lists_and_areas_are_refused_before_any_fit(sleeve_stages):
+    """Unknown or repeated folds and a failed fold already done were swallowed as failed
+    hypotheses ('bogus' ended as the shirt laid flat again); a zero flat area divided by zero."""
+    _, _, _, prior, stages = sleeve_stages
+    cloud, _ = stages[0.0]
+    for folds, failed, words in [(["bogus"], None, "unknown folds"), ([], "bogus", "unknown folds"),
+                                 (["left_sleeve", "left_sleeve"], None, "listed twice"),
+                                 (["left_sleeve"], "left_sleeve", "listed twice")]:
+        with pytest.raises(ValueError, match=words):
+            estimate_state(cloud, folds, prior=prior, failed=failed)
+    for area in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="flat_shirt_area"):
+            estimate_state(cloud, ["left_sleeve"], flat_shirt_area=area)
+    with pytest.raises(ValueError, match="listed twice"):
+        estimate_keypoints(cloud, folds=["left_sleeve", "left_sleeve"])
+
+
+def test_when_nothing_fits_the_error_names_every_hypothesis(sleeve_stages):
+    """A disc after the left sleeve: prior, prior shape, fresh and flat again all fail, and the
+    error lists each with its residual before the closest one's own message."""
+    _, _, flat, prior, _ = sleeve_stages
+    rng = np.random.default_rng(1)
+    r, a = 0.35 * np.sqrt(rng.random(20000)), rng.uniform(0, 2 * np.pi, 20000)
+    disc = np.column_stack([r * np.cos(a), r * np.sin(a), np.full(20000, 0.001)])
+    with pytest.raises(PoorFitError, match=r"no hypothesis fits \(prior: residual .* mm, over max_residual; "
+                                           r"prior shape: .*fresh: .*flat again: .*\); the closest: fit residual"):
+        estimate_state(disc, ["left_sleeve"], prior=prior, flat_shirt_area=flat_area(flat.shape))

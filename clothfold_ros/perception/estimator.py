@@ -479,6 +479,8 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
     unknown = [n for n in names if n not in FOLD_NAMES]
     if unknown:
         raise ValueError(f"unknown folds {unknown}; known: {', '.join(FOLD_NAMES)}")
+    if len(set(names)) != len(names):
+        raise ValueError(f"a fold listed twice in {names}: each fold is done once")
     cloth = segment(points, config)
     view = top_view(cloth, config)
     step = max(1, len(view.contour) // config.contour_points)

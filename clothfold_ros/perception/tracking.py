@@ -25,13 +25,15 @@ Frames and units as `estimate_keypoints`: table frame, metres, z up.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
 
-from .estimator import (BadCloudError, EstimatorConfig, KeypointEstimate, MultipleBlobsError, NoClothError,
-                        PoorFitError, estimate_keypoints, flat_area)
+from ..folding import FOLD_NAMES
+from .estimator import (BadCloudError, EstimatorConfig, FitError, KeypointEstimate, MultipleBlobsError,
+                        NoClothError, PoorFitError, estimate_keypoints, flat_area)
 
 #: a flat fit of a folded shirt's cloud is taken as the shirt laid flat again from this share
 #: of the flat shirt's area as last seen flat
@@ -77,6 +79,13 @@ def estimate_state(points: np.ndarray, folds: Sequence[str], prior: KeypointEsti
     `PoorFitError` (carrying its estimate; also when only fresh fits of a smaller shirt fit) or
     the last fit error when no hypothesis fits."""
     folds = list(folds)
+    unknown = [f for f in folds + ([failed] if failed is not None else []) if f not in FOLD_NAMES]
+    if unknown:
+        raise ValueError(f"unknown folds {unknown}; known: {', '.join(FOLD_NAMES)}")
+    if len(set(folds)) != len(folds) or failed in folds:
+        raise ValueError(f"a fold listed twice: folds {folds}, failed {failed!r}")
+    if flat_shirt_area is not None and not (math.isfinite(flat_shirt_area) and flat_shirt_area > 0):
+        raise ValueError(f"flat_shirt_area must be a positive area in m^2 (or None), got {flat_shirt_area}")
     tiers: list[list[tuple[str, list[str], dict]]] = [[], [], [("fresh", folds, {})]]
     from_prior = {"prior": prior} if prior is not None else {}
     if prior is not None:
@@ -130,12 +139,13 @@ def estimate_state(points: np.ndarray, folds: Sequence[str], prior: KeypointEsti
                 best = (start, names, est)
         if best is not None and best[2].residual <= good:
             break
-    if best is None:
+    if best is None:  # every hypothesis named with why it was not taken
         if rejected:
-            raise min(rejected, key=lambda e: e.estimate.residual)
+            err = min(rejected, key=lambda e: e.estimate.residual)
+            raise PoorFitError(f"no hypothesis fits ({'; '.join(tried)}); the closest: {err}", err.estimate)
         if refused:
-            why, est = refused[0]
-            raise PoorFitError(f"the cloud fits only a smaller shirt than the one seen flat ({why})", est)
-        raise errors[-1]
+            raise PoorFitError(f"the cloud fits only a smaller shirt than the one seen flat ({'; '.join(tried)})",
+                               refused[0][1])
+        raise FitError(f"no hypothesis fits ({'; '.join(tried)})") from errors[-1]
     start, names, est = best
     return StateEstimate(list(names), start, est, tried, warnings)
