@@ -162,3 +162,13 @@ def test_backend_none_runs_the_pipeline_on_wall_time(monkeypatch):
     assert set(started) == {"keypoint_node", "fold_planner_node", "trajectory_node"}
     assert all(ps[1]["use_sim_time"] == "false" for ps in started.values())
     assert _launch_file_nodes(monkeypatch, "sim")["trajectory_node"][1]["use_sim_time"] == "true"
+
+
+def test_parameters_for_an_unknown_node_are_refused():
+    """`-p keypoint_nod:source:=model` was parsed and then dropped without a word."""
+    import pytest
+
+    with pytest.raises(ValueError, match="unknown node\\(s\\) keypoint_nod"):
+        pipeline_nodes("kinematic", overrides={"keypoint_nod": {"source": "model"}})
+    # another backend's node (the demo sets cloth_sim_node's mesh whatever the backend): kept aside
+    assert "cloth_sim_node" not in dict(pipeline_nodes("kinematic", overrides={"cloth_sim_node": {"max_area": 5e-4}}))

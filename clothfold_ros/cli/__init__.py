@@ -40,6 +40,12 @@ def main(argv: list[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # Python's final flush must not raise again
         return 141  # 128 + SIGPIPE, what a shell reports for a tool ended by a closed pipe
+    except (ValueError, OSError) as err:  # bad input or a path that cannot be written: one line, exit 2
+        if os.environ.get("CLOTHFOLD_DEBUG"):
+            raise
+        print(f"clothfold {args.command}: {type(err).__name__}: {err} (CLOTHFOLD_DEBUG=1 shows the traceback)",
+              file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -73,6 +73,13 @@ def run(args: argparse.Namespace) -> int:
     from ..nodes.resources import DEFAULT_PARAMS, work_dir
     from .launcher import Launcher, node_command
 
+    # checked before anything is started or created: one line, exit code 2
+    if not (math.isfinite(args.timeout) and args.timeout > 0):
+        print(f"clothfold demo: --timeout must be a positive number of seconds, got {args.timeout}", file=sys.stderr)
+        return 2
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        print(f"clothfold demo: --domain-id must be in 0..232, got {args.domain_id}", file=sys.stderr)
+        return 2
     tic = time.monotonic()
     old_term = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM: the same clean stop as Ctrl-C
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:  # started with '&' from a script: SIGINT

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Sequence
 
-from ..nodes.backends import PIPELINE, backend as get_backend
+from ..nodes.backends import NODES, PIPELINE, backend as get_backend
 from ..nodes.resources import DEFAULT_PARAMS, work_dir
 from ..nodes.waiting import wait_until
 
@@ -73,6 +73,10 @@ def pipeline_nodes(backend: str = "sim", params_file: str | Path | None = DEFAUL
     if lookahead is not None:
         overrides.setdefault("trajectory_node", {})["lookahead"] = float(lookahead)
     names = [n for n in (b.node, *PIPELINE) if n]
+    unknown = sorted(set(overrides) - set(NODES))
+    if unknown:  # a misspelt node name would otherwise drop its parameters silently (another backend's node:
+        # its parameters simply wait, as a shared parameter file's do)
+        raise ValueError(f"parameters given for unknown node(s) {', '.join(unknown)}; nodes: {', '.join(NODES)}")
     return [(n, node_command(n, params_file, overrides.get(n))) for n in names]
 
 
