@@ -4,7 +4,9 @@ The damaged file is read record by record from the start; every complete chunk w
 data decompresses (and matches its CRC) is kept, reading stops at the first incomplete
 or damaged record. The kept messages are written to a new bag with the original
 schemas, channel metadata (QoS, type hash) and times, plus a fresh summary and rosbag2
-metadata. Nothing is dropped silently: the report counts what was kept and lost.
+metadata. Nothing is dropped silently: the report counts what was kept and lost (channels
+not ROS 2 encoded are dropped and counted; topics with unreadable QoS are kept without it).
+A recovery that fails leaves no output.
 """
 from __future__ import annotations
 

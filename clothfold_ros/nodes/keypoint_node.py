@@ -13,7 +13,8 @@ model (`perception.tracking.estimate_state`: the folds done, from the previous e
 lines, then its shape with every line refitted, then afresh; a fold reported failed and the
 shirt laid flat again are tried too). Publishes /keypoints (vertex ids -1) and the fitted outline as a
 visualization_msgs/Marker LINE_LIST on /keypoints/outline. Clouds arriving while a fold
-is executing are skipped (the cloth moves, the grippers are in view). `points_qos` is the
+is executing are held (the cloth moves, the grippers are in view): the last is handled after
+the fold's result, the others are left out and counted in the log. `points_qos` is the
 subscription's QoS: "latched" for the sim's camera, "sensor_data" (best effort, volatile) for a
 camera driver's sensor-data publisher, which a latched subscription never receives. A bad cloud (empty,
 NaN, no cloth, two blobs, no convergence) is logged with the reason and skipped; a fit

@@ -4,7 +4,8 @@ Grippers follow their commanded target poses exactly (lock-step, dt per step, pa
 most real_time_factor x wall time), /clock is published like the sim node's, the actual
 poses go out on /gripper_<i>/pose and the finger opening on /gripper_<i>/state. When all
 grippers have opened it publishes a /fold/result with success = true, loss = NaN and
-reason "kinematic backend: no cloth", so the pipeline runs unchanged against it. Keypoints
+reason "kinematic backend: no cloth" for the fold announced on /fold/active (a close with
+none announced fails), so the pipeline runs unchanged against it. Keypoints
 then come from keypoint_node with source = model (or a perception node).
 """
 from __future__ import annotations

@@ -7,7 +7,7 @@ a QoS compatible with its publishers (transient_local when all of them offer it,
 effort when any is best effort); the publishers' offered QoS and type hash are stored.
 Prints ``recording to PATH`` (flushed) once ready, logs ``matched TOPIC`` once a topic's
 subscription has matched a publisher (wait for it before sending what must be recorded), and ``bag closed: PATH (N messages)``
-after SIGINT/SIGTERM; a SIGKILL loses at most the last ~``--chunk-age`` s (see
+after SIGINT/SIGTERM (``bag NOT closed: ...`` and exit 1 when it cannot be closed); a SIGKILL loses at most the last ~``--chunk-age`` s (see
 ``clothfold bag recover``). Topics that cannot be recorded are listed, never dropped silently.
 
 Frames: tf2_msgs is not in the PyPI wheels, so the nodes publish no /tf; the recorder writes

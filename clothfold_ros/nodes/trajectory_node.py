@@ -18,7 +18,8 @@ For one goal (a FoldSpec with height ratio, tilt, duration) it
    /fold/result for this fold arrives (wait_for_result), the action result.
 A fold that ends otherwise (cancelled, the clock stood still: backend gone, no result in
 time) always ends with a failed /fold/result: the backend's if it sends one within
-`failure_report_wait` s, else one published by this node with the reason.
+`failure_report_wait` s, else one published by this node with the reason. A cancel after
+the whole motion was sent cannot stop it: it is logged, the backend's result stands.
 Everything in the table frame (m, z up).
 """
 from __future__ import annotations

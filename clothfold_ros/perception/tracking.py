@@ -74,10 +74,10 @@ def estimate_state(points: np.ndarray, folds: Sequence[str], prior: KeypointEsti
 
     prior: the last good estimate of this shirt; failed: a fold reported failed since it;
     flat_shirt_area: m^2, the flat shirt's area as last fitted with no fold done (`flat_area`;
-    None: not seen). Raises the cloud's
-    `PerceptionError` when the cloud itself is bad, else the best rejected hypothesis'
-    `PoorFitError` (carrying its estimate; also when only fresh fits of a smaller shirt fit) or
-    the last fit error when no hypothesis fits."""
+    None: not seen). ValueError for unknown or repeated folds or a bad area (before any fit);
+    the cloud's `PerceptionError` when the cloud itself is bad; when no hypothesis fits, a
+    `PoorFitError` carrying the closest estimate (or, when every fit failed to converge, a
+    `FitError`) whose message names every hypothesis tried and why it was not taken."""
     folds = list(folds)
     unknown = [f for f in folds + ([failed] if failed is not None else []) if f not in FOLD_NAMES]
     if unknown:
