@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[1]
 THIS = Path(__file__).resolve()
 
 #: references to files that only exist next to the checkout, never in it
-OUTSIDE = re.compile(r"\.\./shared|shared/SPEC|SPEC\.md|ipc-notes\.md|ros2-notes\.md|/work/(?:shared|main)")
+OUTSIDE = re.compile(r"\.\./shared|shared/SPEC|SPEC\.md|ipc-notes\.md|ros2-notes\.md|/work/(?:shared|main)"
+                     r"|(?<![\w.])/tmp/")  # a scratch path of one machine: a command with it cannot be rerun
 #: "SPEC section 5" and the like: the old name of docs/method.md (FOLD_SPEC is not matched)
 OLD_NAME = re.compile(r"(?<![A-Za-z0-9_])SPEC(?![A-Za-z0-9_])")
 
