@@ -23,6 +23,8 @@ OUT=${3:-config/tables}
 # median CPU s per run: T1 69, T2 84, mu0.2 112, thick_cotton 130, thin_cotton about 270),
 # so the cheaper single-fold tables, T8 included, come before it.
 ORDER="shape1 T1 T2 both_sleeves shape2 shape3 thick_cotton mu0.2 mu0.8 T8 thin_cotton both_sides middle"
-for s in $ORDER; do
-  clothfold sweep "$s" --points "$POINTS" --max-area "$MAX_AREA" --out "$OUT" || echo "sweep $s FAILED (exit $?)" >&2
+rc=0
+for s in $ORDER; do  # a failed sweep does not stop the others; the script's exit code says so
+  clothfold sweep "$s" --points "$POINTS" --max-area "$MAX_AREA" --out "$OUT" || { echo "sweep $s FAILED (exit $?)" >&2; rc=1; }
 done
+exit $rc

@@ -260,3 +260,50 @@ def test_a_fold_never_announced_fails_naming_it(rig):
     _command(r, stamps[-1], 0.08)
     res = _result(r, before)
     assert not res.success and "no fold spec was announced" in res.reason, (res.success, res.reason)
+
+
+def test_a_backend_refuses_use_sim_time_at_run_time(monkeypatch):
+    """A backend publishes /clock: switched to sim time, its own timer would wait on a clock
+    only it advances and the pipeline would stop without a word. The set is refused."""
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from clothfold_ros.nodes.kinematic_robot_node import KinematicRobotNode
+
+    ctx = rclpy.Context()
+    rclpy.init(args=[], context=ctx, domain_id=197)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+    try:
+        node = KinematicRobotNode()
+        res = node.set_parameters([Parameter("use_sim_time", value=True)])[0]
+        assert not res.successful and "use_sim_time stays false" in res.reason
+        assert node.set_parameters([Parameter("use_sim_time", value=False)])[0].successful
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_a_fold_whose_grippers_opened_early_neither_succeeds_nor_moves_the_target(monkeypatch):
+    """cloth_sim_node's finish(): a fold cancelled upstream (grippers opened before the end of
+    the motion) was logged 'success' and its full target became the next fold's base; the
+    published result was already a failure."""
+    from types import SimpleNamespace
+
+    from clothfold_ros.nodes.cloth_sim_node import ClothSimNode
+
+    logged, published = [], []
+    out = SimpleNamespace(success=True, reason="", loss=0.004, steps=60, newton_iterations=100, wall_time=1.0)
+    node = SimpleNamespace(
+        episode=SimpleNamespace(outcome=lambda: out, target="the half-made fold's target"),
+        active=SimpleNamespace(spec=SimpleNamespace(name="left_sleeve")), target_base="flat",
+        ended_early="grippers opened at 2.4 s, before the end of the planned motion at 4.0 s",
+        get_logger=lambda: SimpleNamespace(info=logged.append),
+        publish_result=lambda ok, reason, *a: published.append((ok, reason)), publish_state=lambda force: None)
+    import clothfold_ros.nodes.cloth_sim_node as mod
+
+    real = mod.params.value
+    monkeypatch.setattr(mod.params, "value", lambda n, name: 0.15 if name == "max_loss" else real(n, name))
+    ClothSimNode.finish(node)
+    assert node.target_base == "flat", node.target_base
+    assert published == [(False, node.ended_early)] and "FAILED: grippers opened" in logged[-1], (published, logged)

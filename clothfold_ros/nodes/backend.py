@@ -28,6 +28,7 @@ import math
 import time
 
 from clothfold_msgs.msg import FoldResult, FoldSpec as FoldSpecMsg, GripperCommand
+from rcl_interfaces.msg import SetParametersResult
 from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -83,6 +84,7 @@ class LockStepBackend(Node):
         if self.get_parameter("use_sim_time").value:
             raise ValueError(f"{name} publishes /clock and must run on wall time (use_sim_time false)")
         params.declare(self, BACKEND_PARAMS + extra_params, check_workspace_params)
+        self.add_on_set_parameters_callback(self._keep_wall_time)
         self.n = params.value(self, "n_grippers")
         self.ls = LockStep(self.n, params.value(self, "dt"))
         self.clock_pub = self.create_publisher(Clock, common.CLOCK, common.CLOCK_QOS)
@@ -112,6 +114,15 @@ class LockStepBackend(Node):
         self.errors = ErrorLog(interval=1.0)
         self.create_timer(params.value(self, "tick"), self.on_tick)
         self.publish_clock()
+
+    @staticmethod
+    def _keep_wall_time(changes) -> SetParametersResult:
+        """A backend publishes /clock: switched to it (use_sim_time true) its own timer would wait
+        for a clock only it advances, and the whole pipeline would stop without a word."""
+        if any(p.name == "use_sim_time" and p.value for p in changes):
+            return SetParametersResult(successful=False, reason="this backend publishes /clock and runs on wall "
+                                                                "time: use_sim_time stays false")
+        return SetParametersResult(successful=True)
 
     # -- input -------------------------------------------------------------------------------
     def error_once(self, key: str, text: str) -> None:

@@ -130,6 +130,9 @@ class ClothSimNode(LockStepBackend):
             self.fold_specs[plan.spec.name] = plan.spec
             self.episode = FoldEpisode(self.sim, plan.spec, target, settle)
             self.get_logger().info(f"fold {plan.spec.name} (stage {plan.stage}) starts at {self.ls.now_ns * 1e-9:.3f} s")
+        if gripper >= self.episode.spec.n_grippers:
+            raise ValueError(f"gripper_{gripper} closed, but fold {self.episode.spec.name} uses "
+                             f"{self.episode.spec.n_grippers} gripper(s)")
         ids = self.sim.grasp(gripper, pose)
         self.get_logger().info(f"gripper_{gripper} closed: {len(ids)} vertices held")
 
@@ -190,9 +193,11 @@ class ClothSimNode(LockStepBackend):
         ep, plan = self.episode, self.active
         out = ep.outcome()
         ok, reason = out.success, out.reason
+        if ok and self.ended_early:  # grippers opened before the motion's end (a cancel): not this fold
+            ok, reason = False, self.ended_early
         if ok and not out.loss <= params.value(self, "max_loss"):
             ok, reason = False, f"loss {out.loss:.4f} m > max_loss {params.value(self, 'max_loss'):g} m"
-        if out.success:
+        if out.success and not self.ended_early:
             self.target_base = ep.target  # the next fold composes onto this target
         self.get_logger().info(f"fold {plan.spec.name if plan else '?'}: loss {out.loss:.6f} m, "
                                f"{'success' if ok else 'FAILED: ' + reason}, {out.steps} steps, "
