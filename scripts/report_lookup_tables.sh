@@ -16,8 +16,15 @@ fi
 TABLES=${1:-config/tables_12k}
 shift || true
 # each table's landscape and best/worst renders (a table whose sweep has no run yet has no table.csv)
+# (a partial table has its landscape only: the best/worst renders read finals.npz, written when it is complete)
 for csv in "$TABLES"/*/table.csv; do
-  [ -f "$csv" ] && clothfold plot --tables "$TABLES" "$(basename "$(dirname "$csv")")"
+  [ -f "$csv" ] || continue
+  name=$(basename "$(dirname "$csv")")
+  if [ -f "$TABLES/$name/finals.npz" ]; then
+    clothfold plot --tables "$TABLES" "$name"
+  else
+    clothfold plot --tables "$TABLES" "$name" 2>/dev/null || echo "$name: partial, landscape only"
+  fi
 done
 clothfold plot --overview --tables "$TABLES"       # the 13 landscapes side by side
 clothfold regret --tables "$TABLES" --out "$TABLES/regret.md" > /dev/null
