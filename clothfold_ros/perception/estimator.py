@@ -458,6 +458,15 @@ def _area_points(outline: np.ndarray, spacing: float = 0.02) -> np.ndarray:
     return np.column_stack([gx[inside], gy[inside]])
 
 
+def check_fold_names(names: Sequence[str]) -> None:
+    """ValueError for a fold name that is not a fold or one listed twice (each is done once)."""
+    unknown = [n for n in names if n not in FOLD_NAMES]
+    if unknown:
+        raise ValueError(f"unknown folds {unknown}; known: {', '.join(FOLD_NAMES)}")
+    if len(set(names)) != len(names):
+        raise ValueError(f"a fold listed twice in {list(names)}: each fold is done once")
+
+
 def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | FoldLine] = (),
                        prior: KeypointEstimate | None = None, shape_prior: ShirtShape | None = None,
                        pose_prior: Sequence[float] | None = None,
@@ -476,11 +485,7 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
 
     tic = time.process_time()
     names = [f if isinstance(f, str) else f.name for f in folds]
-    unknown = [n for n in names if n not in FOLD_NAMES]
-    if unknown:
-        raise ValueError(f"unknown folds {unknown}; known: {', '.join(FOLD_NAMES)}")
-    if len(set(names)) != len(names):
-        raise ValueError(f"a fold listed twice in {names}: each fold is done once")
+    check_fold_names(names)
     cloth = segment(points, config)
     view = top_view(cloth, config)
     step = max(1, len(view.contour) // config.contour_points)

@@ -31,9 +31,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..folding import FOLD_NAMES
 from .estimator import (BadCloudError, EstimatorConfig, FitError, KeypointEstimate, MultipleBlobsError,
-                        NoClothError, PoorFitError, estimate_keypoints, flat_area)
+                        NoClothError, PoorFitError, check_fold_names, estimate_keypoints, flat_area)
 
 #: a flat fit of a folded shirt's cloud is taken as the shirt laid flat again from this share
 #: of the flat shirt's area as last seen flat
@@ -79,11 +78,7 @@ def estimate_state(points: np.ndarray, folds: Sequence[str], prior: KeypointEsti
     `PoorFitError` carrying the closest estimate (or, when every fit failed to converge, a
     `FitError`) whose message names every hypothesis tried and why it was not taken."""
     folds = list(folds)
-    unknown = [f for f in folds + ([failed] if failed is not None else []) if f not in FOLD_NAMES]
-    if unknown:
-        raise ValueError(f"unknown folds {unknown}; known: {', '.join(FOLD_NAMES)}")
-    if len(set(folds)) != len(folds) or failed in folds:
-        raise ValueError(f"a fold listed twice: folds {folds}, failed {failed!r}")
+    check_fold_names(folds + ([failed] if failed is not None else []))  # the failed fold is not done yet
     if flat_shirt_area is not None and not (math.isfinite(flat_shirt_area) and flat_shirt_area > 0):
         raise ValueError(f"flat_shirt_area must be a positive area in m^2 (or None), got {flat_shirt_area}")
     tiers: list[list[tuple[str, list[str], dict]]] = [[], [], [("fresh", folds, {})]]
