@@ -11,9 +11,10 @@ import pytest
 from pipeline_helpers import running_pipeline
 
 from clothfold_ros.garment import make_shirt
+from clothfold_ros.loss import fold_target
 from clothfold_ros.materials import material
 from clothfold_ros.nodes.conversions import fold_spec_from_msg, keypoints_from_msg, time_to_ns
-from clothfold_ros.sim.runner import run_fold
+from clothfold_ros.sim.runner import flat_start, run_fold
 
 DOMAIN = 150
 MAX_AREA = 5e-3  # ~120 triangles: a few seconds per fold on one core
@@ -81,3 +82,19 @@ def test_sim_pipeline_equals_run_fold_and_tracks_the_cloth(pipeline):
     res2 = client.wait_result("right_sleeve", 240, after=before)
     assert res2.success and math.isfinite(res2.loss), res2.reason
     assert res2.stage == 1
+    # ... from the cloth the first fold left, toward the first fold's target with the second
+    # mirrored onto it (composed). The headless runner given both ends within 1 mm of the node's
+    # loss (the node's simulator goes on with the cloth's velocity at the end of the settle, the
+    # runner starts at rest: 0.002 and 0.14 mm apart in two runs); against the flat shirt as the base, the
+    # same cloth's loss is centimetres away (126 against 55 mm)
+    plan2 = fold_spec_from_msg(resp2.spec)
+    ref2 = run_fold(garment, plan2.spec, material("cotton"), 0.5, plan2.height_ratio, plan2.tilt_deg,
+                    duration=plan2.duration, dt=0.04, settle_time=plan2.settle_time,
+                    vertices=ref.vertices, target_base=ref.target)
+    assert ref2.success, ref2.reason
+    assert res2.steps == ref2.steps
+    assert abs(res2.loss - ref2.loss) < 1e-3, (res2.loss, ref2.loss)
+    cotton = material("cotton")
+    uncomposed = fold_target(flat_start(garment, cotton), plan2.spec, cotton.thickness)
+    uncomposed_loss = float(np.mean(np.linalg.norm(ref2.vertices - uncomposed, axis=1)))
+    assert abs(uncomposed_loss - res2.loss) > 0.01, (uncomposed_loss, res2.loss)
