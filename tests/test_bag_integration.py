@@ -264,3 +264,53 @@ def test_a_bag_that_cannot_be_closed_is_reported_and_fails_the_recorder(tmp_path
         assert "bag NOT closed" in err and f"clothfold bag recover {out}" in err
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+def test_recorder_keeps_a_burst_larger_than_any_queue_depth(procs, ros_env, tmp_path):
+    """3,000 messages published back to back: the recorder's subscriptions keep all (KEEP_ALL),
+    so none is replaced in its queue while it writes (with a KEEP_LAST 1000 queue 246 of them were
+    lost here, without any error or event)."""
+    n = 3000
+    out = tmp_path / "burst.mcap"
+    rec = recorder(procs, ros_env, out)
+    publish(procs, ros_env, tmp_path, n=n, period=0.0)
+    time.sleep(1.0)
+    rec.send_signal(signal.SIGINT)
+    line = wait_line(rec, "bag closed", 60)
+    assert rec.wait(timeout=20) == 0
+    xs = [m.pose.position.x for m in decode_with_rosbags(out)["/pose"]]
+    assert xs == [float(i) for i in range(n)], (len(xs), line)
+
+
+def test_messages_the_middleware_reports_lost_are_counted_and_listed(tmp_path, monkeypatch, capsys):
+    """Each recorded topic's subscription carries a message-lost handler; what it reports is
+    logged and listed per topic when the bag closes (the bag cannot hold those messages)."""
+    import rclpy
+    from rclpy.event_handler import QoSSubscriptionEventType
+    from std_msgs.msg import String
+
+    from clothfold_ros.nodes.recorder_node import RecorderNode
+
+    ctx = rclpy.Context()
+    rclpy.init(args=[], context=ctx, domain_id=194)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+    try:
+        talker = rclpy.create_node("talker", context=ctx)
+        talker.create_publisher(String, "/chatter", 10)
+        node = RecorderNode(str(tmp_path / "x.mcap"), topics=["/chatter"], tf=False)
+        deadline = time.monotonic() + 10
+        while "/chatter" not in node.subs and time.monotonic() < deadline:
+            time.sleep(0.05)
+            node.discover()
+        handlers = {h.event_type: h for h in node.subs["/chatter"].event_handlers}
+        lost = handlers[QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST]
+        for change, total in ((3, 3), (0, 3), (2, 5)):  # what rmw reports: the change since the last event
+            lost.callback(type("Status", (), {"total_count_change": change, "total_count": total})())
+        assert node.lost == {"/chatter": 5}
+        node.destroy_node()
+        err = capsys.readouterr().err
+        assert "recorder: 5 message(s) on /chatter lost before they reached the recorder" in err
+        talker.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)

@@ -2,13 +2,16 @@
 
 Usage: ``recorder_node --output PATH [--topics T1 T2 ...] [--exclude REGEX] [--include-hidden]
 [--ros-args ...]``. Records every topic (default) or the given ones; new topics are
-discovered every ``--discovery-period`` s. Each topic is subscribed with ``raw=True`` and
-a QoS compatible with its publishers (transient_local when all of them offer it, best
-effort when any is best effort); the publishers' offered QoS and type hash are stored.
-Prints ``recording to PATH`` (flushed) once ready, logs ``matched TOPIC`` once a topic's
-subscription has matched a publisher (wait for it before sending what must be recorded), and ``bag closed: PATH (N messages)``
-after SIGINT/SIGTERM (``bag NOT closed: ...`` and exit 1 when it cannot be closed); a SIGKILL loses at most the last ~``--chunk-age`` s (see
-``clothfold bag recover``). Topics that cannot be recorded are listed, never dropped silently.
+discovered every ``--discovery-period`` s. Each topic is subscribed with ``raw=True``, KEEP_ALL
+(no queued message is ever replaced by a newer one) and a QoS compatible with its publishers
+(transient_local when all of them offer it, best effort when any is best effort); the
+publishers' offered QoS and type hash are stored. Prints ``recording to PATH`` (flushed) once
+ready, logs ``matched TOPIC`` once a topic's subscription has matched a publisher (wait for it
+before sending what must be recorded), and ``bag closed: PATH (N messages)`` after
+SIGINT/SIGTERM (``bag NOT closed: ...`` and exit 1 when it cannot be closed); a SIGKILL loses
+at most the last ~``--chunk-age`` s (see ``clothfold bag recover``). Topics that cannot be
+recorded are listed, never dropped silently, and so are messages the middleware reports lost
+before they reached the recorder (its message-lost event, counted per topic).
 
 Frames: tf2_msgs is not in the PyPI wheels, so the nodes publish no /tf; the recorder writes
 them into the bag (unless ``--no-tf``): at the start one latched /tf_static
@@ -26,6 +29,7 @@ import sys
 import time
 from typing import Any
 
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
@@ -36,7 +40,6 @@ from ..bag.tf import (TF_QOS, TF_STATIC_QOS, TF_STATIC_TOPIC, TF_TOPIC, TF_TYPE,
 from . import conversions as rc
 from .common import ShutdownFailure, run
 
-SUBSCRIBE_DEPTH = 1000  # queue of received, not yet written messages per topic
 ROOT_TRANSFORM = ("world", "table")  # /tf_static: the fixed root above the table frame every message uses
 GRIPPER_POSE = re.compile(r"^/(gripper_\d+)/pose$")  # PoseStamped -> /tf <frame_id> -> gripper_<i>
 
@@ -53,10 +56,12 @@ def is_hidden(topic: str) -> bool:
 
 
 def subscription_qos(offers: list[QoSProfile]) -> QoSProfile:
-    """A subscription QoS that matches every offer (and gets latched data when all are latched)."""
+    """A subscription QoS that matches every offer (and gets latched data when all are latched).
+    KEEP_ALL: a message received but not yet written is never replaced by a newer one (a
+    KEEP_LAST queue drops the oldest without any event when a burst outruns the writer)."""
     best_effort = any(o.reliability == ReliabilityPolicy.BEST_EFFORT for o in offers)
     latched = bool(offers) and all(o.durability == DurabilityPolicy.TRANSIENT_LOCAL for o in offers)
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=SUBSCRIBE_DEPTH,
+    return QoSProfile(history=HistoryPolicy.KEEP_ALL,
                       reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
@@ -76,6 +81,7 @@ class RecorderNode(Node):
         self.subs: dict[str, Any] = {}
         self.matched: set[str] = set()  # topics whose subscription has matched a publisher (logged once)
         self.skipped: dict[str, str] = {}  # topic -> reason it is not recorded
+        self.lost: dict[str, int] = {}  # topic -> messages the middleware reports lost before they reached us
         self.tf = tf and self._selected(TF_TOPIC)
         self._tf_warned: set[str] = set()
         if tf and self._selected(TF_STATIC_TOPIC):
@@ -118,7 +124,8 @@ class RecorderNode(Node):
                 continue
             self.subs[topic] = self.create_subscription(
                 cls, topic, lambda data, info, t=topic, ty=types[0]: self._on_message(t, ty, data, info),
-                subscription_qos(offers), raw=True)
+                subscription_qos(offers), raw=True,
+                event_callbacks=SubscriptionEventCallbacks(message_lost=lambda s, t=topic: self._on_lost(t, s)))
             self.get_logger().info(f"recording {topic} ({types[0]})")
         self._report_matches()
 
@@ -133,6 +140,16 @@ class RecorderNode(Node):
         self.get_logger().warning(f"not recording {topic}: {reason}")
 
     # -- messages -----------------------------------------------------------------------
+    def _on_lost(self, topic: str, status: Any) -> None:
+        """The middleware's message-lost event (e.g. best-effort samples missing on the wire):
+        counted per topic, logged, and listed when the bag closes."""
+        n = int(status.total_count_change)
+        if n <= 0:
+            return
+        self.lost[topic] = self.lost.get(topic, 0) + n
+        self.get_logger().warning(f"{n} message(s) on {topic} lost before they reached the recorder "
+                                  f"({self.lost[topic]} on it so far)")
+
     def _on_message(self, topic: str, type_name: str, data: bytes, info: dict) -> None:
         log_ns = int(info.get("received_timestamp") or 0) or time.time_ns()
         pub_ns = int(info.get("source_timestamp") or 0) or log_ns
@@ -188,6 +205,9 @@ class RecorderNode(Node):
                 raise ShutdownFailure(f"bag {self.output} not closed: {err}") from err
             for topic, reason in sorted(self.skipped.items()):
                 print(f"recorder: skipped {topic}: {reason}", file=sys.stderr, flush=True)
+            for topic, n in sorted(self.lost.items()):
+                print(f"recorder: {n} message(s) on {topic} lost before they reached the recorder "
+                      "(reported by the middleware; not in the bag)", file=sys.stderr, flush=True)
             if self.wanted:
                 for topic in sorted(self.wanted - set(self.writer.topics)):
                     print(f"recorder: no messages on {topic}", file=sys.stderr, flush=True)
