@@ -48,3 +48,34 @@ def test_profile_table_run_stops_after_k_steps_with_a_repeatable_digest(tmp_path
 
     first = digest("96")
     assert len(first) == 40 and digest("96") == first != digest("10")
+
+
+def test_loss_breakdown_splits_the_folded_part_from_the_part_that_stays() -> None:
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        from loss_breakdown import breakdown
+    finally:
+        sys.path.remove(str(ROOT / "scripts"))
+    import numpy as np
+
+    base = np.zeros((4, 3))
+    target = base.copy()
+    target[:2, 0] = 0.3  # two vertices folded 30 cm over
+    final = target.copy()
+    final[0, 2] += 0.04  # one of them still 4 cm up
+    final[2:, 1] += 0.01  # the part that stays dragged 1 cm along y
+    b = breakdown(final, target, base)
+    assert b["moved_fraction"] == 0.5
+    assert np.isclose(b["moved_loss"], 20.0) and np.isclose(b["moved_dz"], 20.0) and np.isclose(b["moved_dxy"], 0.0)
+    assert np.isclose(b["stayed_loss"], 10.0) and np.isclose(b["stayed_offset_y"], 10.0)
+    assert np.isclose(b["loss"], 15.0) and np.isclose(b["moved_z_max"], 40.0)
+
+
+def test_loss_breakdown_reads_a_committed_table() -> None:
+    out = _script("loss_breakdown.py", "shape1", "7", "32")
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0].startswith("point 7 (h 0.238, tilt 20.0 deg): loss 0.9 mm")
+    assert lines[1].startswith("point 32 (h 0.515, tilt 30.0 deg)")
+    bad = _script("loss_breakdown.py", "shape1", "999")
+    assert bad.returncode == 2 and "no run" in bad.stderr
