@@ -255,13 +255,16 @@ def bench_bag(args) -> None:
     kinds = {"/cloth/points": PointCloud2, "/cloth/state": ClothState, "/fold/active": FoldSpecMsg,
              "/fold/result": FoldResult}
     events, states = [], {}
+    logged: dict[tuple[str, int], int] = {}  # (topic, header stamp) -> log time of a cloud or state (ns)
     for m in BagReader(args.bag).messages(list(kinds)):
         msg = deserialize_message(m.data, kinds[m.topic])
         stamp = rc.stamp_ns(msg.header, m.topic)
         if m.topic == "/cloth/state":
             states[stamp] = rc.cloth_state_from_msg(msg).vertices
+            logged[(m.topic, stamp)] = m.log_time_ns
         elif m.topic == "/cloth/points":
             events.append((stamp, 1, cloud_from_msg(msg)))
+            logged[(m.topic, stamp)] = m.log_time_ns
         else:
             events.append((stamp, 0, rc.fold_spec_from_msg(msg) if m.topic == "/fold/active" else msg))
     events.sort(key=lambda e: e[:2])
@@ -271,6 +274,7 @@ def bench_bag(args) -> None:
     print("|---|---|---|---|---|---|")
     specs, failed, active, held = [], None, None, None
     prior = first = None
+    used: set[int] = set()  # log times (ns) of the clouds estimated and their states
     queue = list(events)
     while queue:
         stamp, _, item = queue.pop(0)
@@ -288,6 +292,7 @@ def bench_bag(args) -> None:
             held = (stamp, 1, item)  # a fold is moving the cloth: the last cloud is taken after its result
             continue
         names, truth = [s.name for s in specs], visible_keypoints(g, states[stamp], specs)
+        used.update({logged[("/cloth/points", stamp)], logged[("/cloth/state", stamp)]})
 
         def cell(fit) -> str:
             try:
@@ -313,6 +318,12 @@ def bench_bag(args) -> None:
             prior, failed = state.estimate, None
             if not state.folds and first is None:
                 first = flat_area(state.estimate.shape)
+    if args.bag_subset:  # what this replay used: every fold message, the clouds at rest and their states
+        from clothfold_ros.bag import filter_bag
+
+        report = filter_bag(args.bag, args.bag_subset, topics=list(kinds), overwrite=True,
+                            keep=lambda m: m.topic.startswith("/fold/") or m.log_time_ns in used)
+        print(f"\nsubset written: {report.summary()}")
 
 
 def bench_time(args, rng) -> None:
@@ -370,6 +381,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--simulated", action="store_true", help="also the sequence folded by the IPC simulator")
     p.add_argument("--sim-area", type=float, default=5e-4, help="mesh max triangle area (m^2) for --simulated")
     p.add_argument("--bag", help="also the clouds of a recorded run (MCAP), see above")
+    p.add_argument("--bag-subset", help="with --bag: also write the messages the replay used (a small bag) here")
     p.add_argument("--bag-shape", type=int, default=1, help="the recorded run's shirt shape")
     p.add_argument("--bag-area", type=float, default=2e-4, help="the recorded run's mesh max triangle area (m^2)")
     p.add_argument("--verbose", action="store_true")

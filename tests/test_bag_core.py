@@ -77,15 +77,19 @@ def _messages():
 LATCHED = Qos(depth=1, durability="transient_local")
 
 
-def _write(path: Path, chunk_size: int = 1500) -> list[tuple[str, str, object, int]]:
+def _write(path: Path, chunk_size: int = 1500) -> list[tuple[str, str, object, int, bytes]]:
+    """(topic, type, message, log time ns, the bytes written) per message. The bytes are kept:
+    rclpy's CDR serialization leaves alignment padding uninitialised, so serializing the same
+    message again may give other padding bytes (seen: b"pd\x1ep" where the bag holds zeros)."""
     written = []
     with BagWriter(path, chunk_size=chunk_size) as w:
         for k, (topic, typ, msg) in enumerate(_messages()):
             qos = [LATCHED] if topic in ("/keypoints", "/fold/spec") else [Qos(depth=1000), Qos(depth=5)]
             w.add_topic(topic, typ, qos)
             t = T0 + 10_000_000 * k
-            w.write(topic, serialize_message(msg), t, t - 1000)
-            written.append((topic, typ, msg, t))
+            data = serialize_message(msg)
+            w.write(topic, data, t, t - 1000)
+            written.append((topic, typ, msg, t, data))
     return written
 
 
@@ -165,7 +169,7 @@ def test_rosbags_decodes_every_message_with_empty_typestore(tmp_path):
     decoded = _decode_all_with_rosbags(path)
     assert len(decoded) == len(written)
     by_time = {t: (topic, v) for topic, t, v in decoded}
-    for topic, _, msg, t in written:
+    for topic, _, msg, t, _ in written:
         got_topic, got = by_time[t]
         assert got_topic == topic
         assert got == _ros_value(msg), topic
@@ -219,7 +223,7 @@ def test_own_reader_time_order_filter_and_bytes(tmp_path):
     with BagReader(path) as b:
         msgs = list(b.messages())
         assert [m.log_time_ns for m in msgs] == sorted(w[3] for w in written)
-        assert [m.data for m in msgs] == [serialize_message(w[2]) for w in written]
+        assert [m.data for m in msgs] == [w[4] for w in written]
         assert all(m.publish_time_ns == m.log_time_ns - 1000 for m in msgs)
         poses = list(b.messages(topics=["/gripper_0/target_pose"], start_ns=T0 + 10_000_000 * 10))
         assert len(poses) == 20
@@ -307,3 +311,50 @@ def test_player_refuses_non_finite_settings():
                           ({"clock_hz": math.nan}, "--clock"), ({"clock_hz": 0.0}, "--clock")):
         with pytest.raises(BagError, match=words):
             Player(None, None, **kwargs)
+
+
+def test_filter_keeps_topics_window_and_bytes_and_rosbags_reads_it(tmp_path):
+    from clothfold_ros.bag import filter_bag
+    from clothfold_ros.cli import main
+
+    src = tmp_path / "mix.mcap"
+    written = _write(src)
+    out = tmp_path / "cut.mcap"
+    window = (T0 + 10_000_000 * 10, T0 + 10_000_000 * 20)  # poses 10..19
+    report = filter_bag(src, out, topics=["/gripper_0/target_pose", "/keypoints"], start_ns=window[0],
+                        end_ns=window[1])
+    assert report.kept == {"/gripper_0/target_pose": 10} and report.read == 10
+    with BagReader(out) as b, BagReader(src) as a:
+        msgs = list(b.messages())
+        assert [(m.topic, m.log_time_ns, m.publish_time_ns, m.data) for m in msgs] == \
+            [(m.topic, m.log_time_ns, m.publish_time_ns, m.data) for m in a.messages(["/gripper_0/target_pose"], *window)]
+        info, orig = b.topics["/gripper_0/target_pose"], a.topics["/gripper_0/target_pose"]
+        assert (info.type, info.definition, info.type_hash, info.offered_qos) == \
+            (orig.type, orig.definition, orig.type_hash, orig.offered_qos)
+    assert [m.pose.position.x for _, _, m in rosbags_messages(out)] == \
+        [w[2].pose.position.x for w in written[10:20]]
+
+    # a predicate and an exclude regex; a bag directory as output
+    odd = filter_bag(src, tmp_path / "odd", exclude="^/gripper_", keep=lambda m: m.log_time_ns % 20_000_000 == 10_000_000)
+    with BagReader(tmp_path / "odd") as b:
+        assert all(not m.topic.startswith("/gripper_") for m in b.messages())
+        assert b.message_count == sum(odd.kept.values()) > 0
+
+    # refusals: unknown topic, bad regex, empty window, existing output, the source itself; none leaves a file
+    for kwargs, match in (({"topics": ["/nope"]}, "no topic /nope"), ({"exclude": "("}, "bad exclude regex"),
+                          ({"start_ns": T0 + 5, "end_ns": T0 + 5}, "empty time window")):
+        with pytest.raises(BagError, match=match):
+            filter_bag(src, tmp_path / "bad.mcap", **kwargs)
+        assert not (tmp_path / "bad.mcap").exists()
+    with pytest.raises(BagError, match="exists"):
+        filter_bag(src, out)
+    with pytest.raises(BagError, match="must not be the source"):
+        filter_bag(src, src, overwrite=True)
+
+    # the command: seconds after the bag's first message
+    assert main(["bag", "filter", str(src), "-o", str(out), "--topics", "/gripper_0/target_pose", "--start", "0.1",
+                 "--end", "0.2", "--force"]) == 0
+    with BagReader(out) as b:
+        assert b.message_count == 10
+    assert main(["bag", "filter", str(src), "-o", str(tmp_path / "x.mcap"), "--start", "nan"]) == 1
+    assert not (tmp_path / "x.mcap").exists()
