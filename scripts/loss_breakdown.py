@@ -68,7 +68,9 @@ def main(argv: list[str] | None = None) -> int:
     else:
         from clothfold_ros.lookup.sweep import _scene
 
-        base = _scene(layout.read_settings(d)).flat
+        base = x0 = _scene(layout.read_settings(d)).flat
+    print(f"{args.scenario}: the loss had the cloth not moved (its start state against the target): "
+          f"{np.linalg.norm(x0 - target, axis=1).mean() * 1e3:.1f} mm")
     for p in points:
         if p not in rows:
             print(f"point {p}: no run", file=sys.stderr)

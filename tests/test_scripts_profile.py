@@ -75,7 +75,8 @@ def test_loss_breakdown_reads_a_committed_table() -> None:
     out = _script("loss_breakdown.py", "shape1", "7", "32")
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
-    assert lines[0].startswith("point 7 (h 0.238, tilt 20.0 deg): loss 0.9 mm")
-    assert lines[1].startswith("point 32 (h 0.515, tilt 30.0 deg)")
+    assert lines[0] == "shape1: the loss had the cloth not moved (its start state against the target): 90.2 mm"
+    assert lines[1].startswith("point 7 (h 0.238, tilt 20.0 deg): loss 0.9 mm")
+    assert lines[2].startswith("point 32 (h 0.515, tilt 30.0 deg)")
     bad = _script("loss_breakdown.py", "shape1", "999")
     assert bad.returncode == 2 and "no run" in bad.stderr
