@@ -19,13 +19,10 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.csv")),
     ]
-    + [  # lookup tables: config/tables/<scenario>/* -> share/clothfold_ros/config/tables/<scenario>/
-        (f"share/{PACKAGE}/{d}", sorted(f for f in glob(f"{d}/*") if os.path.isfile(f)))
-        for d in sorted(glob("config/tables/*/")) + ["config/tables"]
-    ]
-    + [  # 12K tables: what the planner reads (the sweeps' raw runs and final meshes stay in the checkout)
+    + [  # lookup tables, config/tables/<scenario>/: what the planner reads (tables, provenance, settings);
+        # the sweeps' raw runs and final meshes, and the first coarse tables (config/tables_1k2), stay in the checkout
         (f"share/{PACKAGE}/{d}", sorted(glob(f"{d}/*.csv") + glob(f"{d}/*.json")))
-        for d in sorted(glob("config/tables_12k/*/"))
+        for d in sorted(glob("config/tables/*/"))
     ],
     package_data={PACKAGE: ["py.typed"]},
     install_requires=["setuptools"],

@@ -3,9 +3,9 @@
 # Usage: scripts/generate_lookup_tables.sh [POINTS] [MAX_AREA_M2] [OUT]
 #   POINTS: all | alternate | every:R:T | comma list of fan indices (default every:4:6)
 #   MAX_AREA_M2: mesh max triangle area (default 5e-4, ~1.2K triangles; the study's full resolution is 5e-5)
-# The shipped 12K tables (resume them with this line): scripts/generate_lookup_tables.sh all 5e-5 config/tables_12k
-# The script sweeps at the defaults (400 Newton iterations, 170 deg end angle); config/tables/ was made
-# with other settings and refuses them, so a coarse run needs a fresh directory:
+# The shipped 12K tables (resume them with this line): scripts/generate_lookup_tables.sh all 5e-5 config/tables
+# The script sweeps at the defaults (400 Newton iterations, 170 deg end angle); a coarse run needs a
+# fresh directory (a sweep directory refuses other settings):
 #   scripts/generate_lookup_tables.sh every:4:6 5e-4 out/tables   (see docs/lookup.md)
 set -u
 # use this checkout's environment when clothfold is not on PATH (run ./clothfold once to create it)
@@ -16,7 +16,7 @@ if ! command -v clothfold >/dev/null 2>&1; then
 fi
 POINTS=${1:-every:4:6}
 MAX_AREA=${2:-5e-4}
-OUT=${3:-config/tables}
+OUT=${3:-out/tables}
 # sequence stages need the stage before them; the rest are independent. The short motions
 # (T1, T2: 30 and 55 steps) come early: complete tables sooner for the leave-one-out regret.
 # thin_cotton's 12K runs cost 3-4x a shape1 run (3,228 Newton iterations for its fan point 1;

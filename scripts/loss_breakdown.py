@@ -2,7 +2,7 @@
 target, split into the part the fold moves and the part that should stay, each into height
 (z) and table-plane (xy) error, with the error the stage inherited from its start state.
 
-    python scripts/loss_breakdown.py SCENARIO [POINT ...] [--tables config/tables_12k]
+    python scripts/loss_breakdown.py SCENARIO [POINT ...] [--tables config/tables]
 
 Without POINT: the table's best successful run. Reads the sweep directory only (settings,
 start.npz, runs.jsonl and the final states); simulates nothing. Units: mm; frame: the table's
@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scenario")
     ap.add_argument("points", type=int, nargs="*", help="fan points (default: the best successful run)")
-    ap.add_argument("--tables", default="config/tables_12k", help="tables root")
+    ap.add_argument("--tables", default="config/tables", help="tables root")
     args = ap.parse_args(argv)
     d = Path(args.tables) / args.scenario
     if not (d / layout.RUNS).exists():

@@ -1,7 +1,7 @@
 """Where the CPU time of one lookup-table run goes: cProfile of a sweep job (scenario, fan
 point) with the sweep's own settings, and the share of subspace Newton directions.
 
-    python scripts/profile_table_run.py SCENARIO POINT [--tables config/tables_12k]
+    python scripts/profile_table_run.py SCENARIO POINT [--tables config/tables]
                                         [--seconds S | --steps K] [--top 25] [--out run.prof]
 
 Reads the scenario's settings.json (and start.npz of a sequence stage) from its sweep
@@ -42,7 +42,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scenario")
     ap.add_argument("point", type=int)
-    ap.add_argument("--tables", default="config/tables_12k", help="tables root holding <scenario>/settings.json")
+    ap.add_argument("--tables", default="config/tables", help="tables root holding <scenario>/settings.json")
     ap.add_argument("--seconds", type=int, default=0, help="stop after this many wall seconds (0: the whole run)")
     ap.add_argument("--steps", type=int, default=0, help="stop after this many simulator steps (0: the whole run)")
     ap.add_argument("--top", type=int, default=25)

@@ -6,14 +6,14 @@
 # docs/lookup.md quote are held against ROOT/regret.md by tests/test_lookup_regret_report.py:
 # copy them over by hand, with the text around them.
 # Usage: scripts/report_lookup_tables.sh [ROOT [MARKDOWN ...]]
-#   scripts/report_lookup_tables.sh config/tables_12k README.md docs/lookup.md config/tables_12k/README.md
+#   scripts/report_lookup_tables.sh config/tables README.md docs/lookup.md config/tables/README.md
 set -eu
 if ! command -v clothfold >/dev/null 2>&1; then
   ROOT_DIR=$(cd "$(dirname "$0")/.." && pwd)
   if [ -f "$ROOT_DIR/.venv/clothfold_env.sh" ]; then . "$ROOT_DIR/.venv/clothfold_env.sh"
   else echo "clothfold not found: run $ROOT_DIR/clothfold --help once to set up .venv" >&2; exit 2; fi
 fi
-TABLES=${1:-config/tables_12k}
+TABLES=${1:-config/tables}
 shift || true
 # each table's landscape and best/worst renders (a table whose sweep has no run yet has no table.csv)
 # (a partial table has its landscape only: the best/worst renders read finals.npz, written when it is complete)

@@ -3,9 +3,9 @@
     python scripts/sequence_headless.py [--max-area 2e-4] [--out out/sequence]
 
 Every stage's (height ratio, tilt) is what the planner node picks for the flat shirt's keypoints:
-the TableSelector over config/tables_12k, then config/tables (the node's default). The side and
-middle folds have no complete table of their own yet: the middle fold blends the partial both_sides
-table (it holds its coarse subsample) with sleeve tables, the side folds take shape2's nearer one.
+the TableSelector over config/tables (the node's default, the 12K tables). On the flat shirt's
+keypoints the side folds take shape2's table, nearer to them than both_sides' start state; the
+middle fold takes the middle table's choice.
 """
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ def main() -> int:
     from clothfold_ros.lookup.planner_selector import TableSelector
 
     scene = build_scene(SceneSettings(max_area=args.max_area))
-    selector = TableSelector([ROOT / "config" / "tables_12k", ROOT / "config" / "tables"])  # the node's default
+    selector = TableSelector([ROOT / "config" / "tables"])  # the node's default
     choices = {}
     for i, fold in enumerate(FOLD_SEQUENCE):
         sel = selector.select(fold_name=fold, keypoints=scene.garment.keypoints(scene.flat), material="cotton",

@@ -1,14 +1,14 @@
 """Newton convergence over the fan points that used to fail for solver reasons.
 
 Runs, on the current simulator, every tilt-60 fan point and every point of the 12-point
-subsets of the shipped tables (`config/tables/shape1`, `config/tables/both_sleeves`,
+subsets of the first coarse tables (`config/tables_1k2/shape1`, `config/tables_1k2/both_sleeves`,
 whose start state is the table's own `start.npz`) at the tables' resolution, and prints
 per point whether the run completed, its mean Newton iterations per step and, for a run
 that stopped, its reason. A solver failure ("Newton did not converge",
 "line search stalled", "linear solve failed") is a bug; only a physical failure (the
 grippers force the cloth into itself) may be reported as a result.
 
-    python scripts/solver_convergence.py [--tables config/tables] [--workers 2] [--points tilt60,table]
+    python scripts/solver_convergence.py [--tables config/tables_1k2] [--workers 2] [--points tilt60,table]
                                          [--also shape1:2e-4:2 ...]
 
 --also SCENARIO:MAX_AREA:POINT adds one fan point of a scenario at a mesh resolution (with
@@ -52,7 +52,7 @@ def _run(args: tuple[str, dict, int, float, float, str | None]) -> dict:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--tables", type=Path, default=ROOT / "config" / "tables")
+    ap.add_argument("--tables", type=Path, default=ROOT / "config" / "tables_1k2")
     ap.add_argument("--scenarios", nargs="+", default=["shape1", "both_sleeves"])
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--points", default="tilt60,table", help="tilt60 and/or table (the table's own points)")

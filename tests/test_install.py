@@ -82,9 +82,10 @@ def test_readme_install_commands_build_and_fold(install_run):
     lib = ws / "install" / "clothfold_ros" / "lib" / "clothfold_ros"
     for exe in ("player_node", "recorder_node", "trajectory_node", "kinematic_robot_node", "clothfold"):
         assert (lib / exe).is_file(), exe
+    assert (share / "config" / "tables" / "middle" / "table.csv").is_file()
     assert (share / "config" / "tables" / "shape1" / "table.csv").is_file()
-    assert (share / "config" / "tables_12k" / "shape1" / "table.csv").is_file()
-    assert not (share / "config" / "tables_12k" / "shape1" / "finals.npz").exists()  # sweep data stay in the checkout
+    assert not (share / "config" / "tables_1k2").exists()  # the first coarse tables stay in the checkout
+    assert not (share / "config" / "tables" / "shape1" / "finals.npz").exists()  # sweep data stay in the checkout
 
 
 def test_installed_resources_resolve_through_the_ament_index(install_run):

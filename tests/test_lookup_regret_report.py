@@ -30,7 +30,7 @@ def _summary_rows(text: str) -> list[str]:
     return block.splitlines()[2:]
 
 
-@pytest.mark.parametrize("root", ["config/tables", "config/tables_12k"])
+@pytest.mark.parametrize("root", ["config/tables", "config/tables_1k2"])
 def test_committed_regret_report_is_the_tables(root: str, capsys) -> None:
     code, out, err = _regret(capsys, "--tables", str(ROOT / root))
     assert code == 0, err
@@ -41,8 +41,8 @@ def test_committed_regret_report_is_the_tables(root: str, capsys) -> None:
 
 def test_documented_regret_figures_are_the_tables(capsys) -> None:
     readme, lookup = (ROOT / "README.md").read_text(), (ROOT / "docs" / "lookup.md").read_text()
-    for root, docs in (("config/tables_12k", {"README.md": readme, "docs/lookup.md": lookup}),
-                       ("config/tables", {"docs/lookup.md": lookup})):
+    for root, docs in (("config/tables", {"README.md": readme, "docs/lookup.md": lookup}),
+                       ("config/tables_1k2", {"docs/lookup.md": lookup})):
         code, out, err = _regret(capsys, "--tables", str(ROOT / root))
         assert code == 0, err
         rows = _summary_rows(out)

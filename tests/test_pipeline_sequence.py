@@ -3,7 +3,7 @@
 about every stage completing from the cloth as it is, not about the losses). The planner
 re-plans each stage from /keypoints (here the visible keypoints of the simulated cloth,
 `--keypoints cloth_state`, so no shape fit can reject a crude fold; from the coarse tables,
-`--tables config/tables`: the 12K table's sleeve choice, a low path, drags a mesh this coarse,
+`--tables config/tables_1k2`: the 12K table's sleeve choice, a low path, drags a mesh this coarse,
 which cannot buckle, across the table: 0.41 m), the trajectory node
 streams both grippers of the side and middle folds, and the bag holds each stage's spec
 and result."""
@@ -28,7 +28,7 @@ AREA = 2e-3
 
 def test_demo_sequence_folds_all_five_through_the_nodes(tmp_path):
     cmd = [sys.executable, "-c", "import sys; from clothfold_ros.cli import main; sys.exit(main())", "demo",
-           "--sequence", "--max-area", str(AREA), "--keypoints", "cloth_state", "--tables", "config/tables", "--quiet",
+           "--sequence", "--max-area", str(AREA), "--keypoints", "cloth_state", "--tables", "config/tables_1k2", "--quiet",
            "--domain-id", str(DOMAIN), "--bags", str(tmp_path), "--name", "seq", "--timeout", "600"]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=1500)
     out = run.stdout + run.stderr

@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="(height ratio, tilt) from the lookup table or the parameters (default: config file)")
     p.add_argument("--tables", default=None, metavar="DIR[:DIR...]",
                    help="the planner's table directories in order of precedence (default: config file, "
-                   "config/tables_12k:config/tables); e.g. config/tables for the coarse tables' choices")
+                   "config/tables, the 12K tables); e.g. config/tables_1k2 for the first coarse tables' choices")
     p.add_argument("--bags", type=Path, default=Path("bags"),
                    help="bag directory (default bags/: in the checkout from source, else in the current directory)")
     p.add_argument("--name", default=None, help="run name (default demo-<date>-<time>)")

@@ -78,7 +78,11 @@ def run(args: argparse.Namespace) -> int:
         return 2
     out = args.out if args.out is not None else output_tables()
     d = out / sc.name
-    prev = None if sc.after is None else previous_stage(out, sc.after)
+    try:
+        prev = None if sc.after is None else previous_stage(out, sc.after)
+    except FileNotFoundError as err:
+        print(f"clothfold sweep: {err}", file=sys.stderr)
+        return 2
     command = (f"clothfold sweep {sc.name} --points {args.points} --max-area {args.max_area} --dt {args.dt} "
                f"--settle {args.settle} --newton-tol {args.newton_tol} --max-newton {args.max_newton} "
                f"--end-angle {args.end_angle:g} --out {out}")
@@ -123,8 +127,10 @@ def run(args: argparse.Namespace) -> int:
 
 def previous_stage(out: Path, name: str) -> Path:
     """The table a stage scenario starts from: <out>/<name> when swept there, else the package's
-    shipped table (from source or the install), else <out>/<name> (reported as missing)."""
-    from ..lookup.sweep_dir import has_runs
+    shipped table (from source), else <out>/<name> (reported as missing). FileNotFoundError when
+    only an installed table exists: an install carries the tables, not the final meshes a stage
+    starts from."""
+    from ..lookup.sweep_dir import TABLE, has_runs
 
     here = out / name
     if has_runs(here):
@@ -133,4 +139,10 @@ def previous_stage(out: Path, name: str) -> Path:
         shipped = shipped_tables() / name
     except RuntimeError:
         return here
-    return shipped if has_runs(shipped) else here
+    if has_runs(shipped):
+        return shipped
+    if (shipped / TABLE).is_file():
+        raise FileNotFoundError(f"the next stage starts from {name!r}'s best final mesh, and its table at {shipped} "
+                                "has none (an install carries the tables' CSV and JSON files, not the sweeps' runs "
+                                f"and meshes): sweep {name} into {out} first, or run from a source checkout")
+    return here

@@ -30,8 +30,8 @@ class Selection:
 class TableSelector:
     """Loads every scenario table under `table_dir` once and picks robustly from the nearest
     scenario(s) (docs/lookup.md). table_dir: one directory, or several in order of precedence
-    (a list or "a:b"; e.g. "config/tables_12k:config/tables": a scenario's 12K table once it
-    is complete, the coarse one until then; `table.load_layered_tables`)."""
+    (a list or "a:b"; e.g. "my_tables:config/tables": a scenario's table from my_tables where it
+    has a complete one, else from config/tables; `table.load_layered_tables`)."""
 
     def __init__(self, table_dir: str | Path | list) -> None:
         self.table_roots = table_roots(table_dir)

@@ -190,7 +190,7 @@ def load_tables(root: str | Path) -> dict[str, Table]:
 
 def table_roots(spec: str | Path | list) -> list[Path]:
     """Table directories in order of precedence: a list, or one string with several joined by
-    ':' (e.g. "config/tables_12k:config/tables")."""
+    ':' (e.g. "my_tables:config/tables")."""
     if isinstance(spec, (list, tuple)):
         return [Path(p) for p in spec]
     return [Path(p) for p in str(spec).split(":") if p]

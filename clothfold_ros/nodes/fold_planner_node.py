@@ -43,7 +43,7 @@ PARAMS = [
     Param("height_ratio", 0.5, "Bezier height ratio (-) when selection = parameter (the search space)",
           range=HEIGHT_RATIO_RANGE),
     Param("tilt_deg", 30.0, "Bezier tilt (deg) when selection = parameter (the search space)", range=TILT_RANGE_DEG),
-    Param("table_dir", "config/tables_12k:config/tables", "lookup table directories in order of precedence, "
+    Param("table_dir", "config/tables", "lookup table directories in order of precedence, "
           "joined by ':' (a scenario's table comes from the first with a complete one); relative paths are below "
           "the package's share directory, found through the ament index (the checkout when run from source)"),
     Param("fallback_to_parameters", False, "use the parameters when the table cannot be used (else refuse)"),
