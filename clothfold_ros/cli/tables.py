@@ -1,4 +1,5 @@
-"""`clothfold tables`: where the lookup tables stand (lookup/status.py), current while sweeps run."""
+"""`clothfold tables`: where the lookup tables stand (lookup/status.py) and what each one's
+landscape says (lookup/summary.py), current while sweeps run."""
 from __future__ import annotations
 
 import argparse
@@ -9,26 +10,37 @@ from ._options import add_tables_option, tables_arg
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("tables", help="runs, failures, best point and CPU cost of each scenario's table")
+    p = sub.add_parser("tables", help="runs, failures, best point and CPU cost of each scenario's table, "
+                       "and what each landscape says")
     add_tables_option(p)
     p.add_argument("--write", type=Path, nargs="*", default=[],
-                   help="also replace the table-status block of these Markdown files")
+                   help="also replace the table-status block (and the table-summary block, where a file has "
+                   "one) of these Markdown files")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..lookup.status import markdown, replace_block, tables_status
+    from ..lookup import status, summary
+    from ..lookup.doc_blocks import replace_block
 
     root = tables_arg(args)
     try:
         if not root.is_dir():
             raise FileNotFoundError(f"{root} is not a directory")
-        text = markdown(tables_status(root))
-        edited = {f: replace_block(f.read_text(), text) for f in args.write}
+        text = status.markdown(status.tables_status(root))
+        landscapes = summary.markdown(summary.landscape_summaries(root))
+        edited = {}
+        for f in args.write:
+            new = status.replace_block(f.read_text(), text)
+            if summary.BEGIN in new or summary.END in new:
+                new = replace_block(new, landscapes, summary.BEGIN, summary.END)
+            edited[f] = new
     except (OSError, ValueError) as err:
         print(f"clothfold tables: {err}", file=sys.stderr)
         return 2
     for f, new in edited.items():
         f.write_text(new)
     print(text)
+    print()
+    print(landscapes)
     return 0

@@ -7,13 +7,13 @@ sweep was asked for; otherwise the whole fan). Pure: the standard library and nu
 from __future__ import annotations
 
 import json
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..trajectory import fan
+from . import doc_blocks
 from .scenario import SCENARIOS, generation_order
 from .sweep_dir import PROVENANCE, RUNS, best_row, lock_owner, read_runs
 
@@ -117,10 +117,5 @@ def markdown(statuses: list[TableStatus]) -> str:
 
 
 def replace_block(text: str, block: str) -> str:
-    """`text` with the part between the BEGIN and END markers replaced by `block`."""
-    pattern = re.compile(re.escape(BEGIN) + r".*?" + re.escape(END), re.S)
-    found = len(pattern.findall(text))
-    if found != 1 or text.count(BEGIN) != 1 or text.count(END) != 1:
-        raise ValueError(f"need exactly one {BEGIN} ... {END} block, found {found} "
-                         f"({text.count(BEGIN)} begin and {text.count(END)} end markers)")
-    return pattern.sub(lambda _: f"{BEGIN}\n{block}\n{END}", text, count=1)
+    """`text` with the table-status block replaced by `block` (ValueError unless there is one)."""
+    return doc_blocks.replace_block(text, block, BEGIN, END)
