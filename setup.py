@@ -19,9 +19,10 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.csv")),
     ]
-    + [  # lookup tables, config/tables/<scenario>/: what the planner reads (tables, provenance, settings);
-        # the sweeps' raw runs and final meshes, and the first coarse tables (config/tables_1k2), stay in the checkout
-        (f"share/{PACKAGE}/{d}", sorted(glob(f"{d}/*.csv") + glob(f"{d}/*.json")))
+    + [  # lookup tables, config/tables/<scenario>/: the tables, provenance, settings and run logs (the planner,
+        # `clothfold tables`, `regret`, `plot`'s landscapes); the sweeps' final meshes (about 9 MB a table) and the
+        # first coarse tables (config/tables_1k2) stay in the checkout
+        (f"share/{PACKAGE}/{d}", sorted(glob(f"{d}/*.csv") + glob(f"{d}/*.json") + glob(f"{d}/*.jsonl")))
         for d in sorted(glob("config/tables/*/"))
     ],
     package_data={PACKAGE: ["py.typed"]},

@@ -386,6 +386,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--bag-area", type=float, default=2e-4, help="the recorded run's mesh max triangle area (m^2)")
     p.add_argument("--verbose", action="store_true")
     args = p.parse_args(argv)
+    if args.bag_subset and not args.bag:
+        p.error("--bag-subset needs --bag (it keeps the messages the replay of that bag used)")
     rng = np.random.default_rng(args.seed)
     cam = DepthCamera(noise=args.noise, dropout=args.dropout)
     print(f"# perception benchmark: shapes {args.shapes} + {args.random} random, noise {args.noise * 1e3:g} mm, "

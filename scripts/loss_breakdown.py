@@ -12,7 +12,6 @@ previous stage's target (the flat shirt for a first fold).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -53,9 +52,9 @@ def main(argv: list[str] | None = None) -> int:
     if not (d / layout.RUNS).exists():
         print(f"no runs in {d}", file=sys.stderr)
         return 2
-    rows = {r["point"]: r for r in map(json.loads, (d / layout.RUNS).read_text().splitlines())}
-    ok = [r for r in rows.values() if r["success"]]
-    points = args.points or ([min(ok, key=lambda r: r["loss_m"])["point"]] if ok else [])
+    rows = {int(r["point"]): r for r in layout.read_runs(d)}  # a half-written last line (a sweep running) is skipped
+    best = layout.best_row(list(rows.values()))
+    points = args.points or ([int(best["point"])] if best else [])
     if not points:
         print(f"no successful run in {d}", file=sys.stderr)
         return 2
@@ -63,8 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     start = layout.start_file(d)
     if start:
         x0, base = layout.read_start(start)
-        print(f"{args.scenario}: start state {np.linalg.norm(x0 - base, axis=1).mean() * 1e3:.1f} mm from its "
-              "own target (inherited from the previous stage)")
+        print(f"{args.scenario}: start state (the previous stage's best result) "
+              f"{np.linalg.norm(x0 - base, axis=1).mean() * 1e3:.1f} mm from that stage's target (inherited)")
     else:
         from clothfold_ros.lookup.sweep import _scene
 

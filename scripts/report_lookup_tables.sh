@@ -23,7 +23,7 @@ for csv in "$TABLES"/*/table.csv; do
   if [ -f "$TABLES/$name/finals.npz" ]; then
     clothfold plot --tables "$TABLES" "$name"
   else
-    clothfold plot --tables "$TABLES" "$name" 2>/dev/null || echo "$name: partial, landscape only"
+    clothfold plot --tables "$TABLES" "$name" 2>/dev/null && echo "$name: partial, landscape only"
   fi
 done
 clothfold plot --overview --tables "$TABLES"       # the 13 landscapes side by side

@@ -348,8 +348,25 @@ def test_filter_keeps_topics_window_and_bytes_and_rosbags_reads_it(tmp_path):
         assert not (tmp_path / "bad.mcap").exists()
     with pytest.raises(BagError, match="exists"):
         filter_bag(src, out)
-    with pytest.raises(BagError, match="must not be the source"):
+    with pytest.raises(BagError, match="must lie apart from the source"):
         filter_bag(src, src, overwrite=True)
+    # a bag directory and its own file, either way round: refused before anything is opened for writing
+    d = tmp_path / "run1"
+    _write(d)
+    inner = d / "run1_0.mcap"
+    before = inner.read_bytes()
+    for a, b in ((inner, d), (d, inner), (d, d / "sub" / "x.mcap")):
+        with pytest.raises(BagError, match="must lie apart from the source"):
+            filter_bag(a, b, overwrite=True)
+    assert inner.read_bytes() == before
+    # a selection of no message is refused, and an output that existed stays as it was
+    kept = out.read_bytes()
+    with pytest.raises(BagError, match="no message selected"):
+        filter_bag(src, out, topics=["/keypoints"], start_ns=T0, end_ns=T0 + 1, overwrite=True)
+    with pytest.raises(BagError, match="every topic selected is excluded"):
+        filter_bag(src, out, exclude=".", overwrite=True)
+    assert out.read_bytes() == kept
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".filter-")] == []  # no staging left behind
 
     # the command: seconds after the bag's first message
     assert main(["bag", "filter", str(src), "-o", str(out), "--topics", "/gripper_0/target_pose", "--start", "0.1",

@@ -273,9 +273,8 @@ def test_recorder_keeps_a_burst_larger_than_any_queue_depth(procs, ros_env, tmp_
     n = 3000
     out = tmp_path / "burst.mcap"
     rec = recorder(procs, ros_env, out)
-    publish(procs, ros_env, tmp_path, n=n, period=0.0)
-    time.sleep(1.0)
-    rec.send_signal(signal.SIGINT)
+    publish(procs, ros_env, tmp_path, n=n, period=0.0)  # returns once every message is acknowledged
+    rec.send_signal(signal.SIGINT)  # at once: what is still queued is written at shutdown
     line = wait_line(rec, "bag closed", 60)
     assert rec.wait(timeout=20) == 0
     xs = [m.pose.position.x for m in decode_with_rosbags(out)["/pose"]]
@@ -311,6 +310,42 @@ def test_messages_the_middleware_reports_lost_are_counted_and_listed(tmp_path, m
         node.destroy_node()
         err = capsys.readouterr().err
         assert "recorder: 5 message(s) on /chatter lost before they reached the recorder" in err
+        talker.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_messages_still_queued_at_shutdown_are_written(tmp_path, monkeypatch, capsys):
+    """The executor stops at SIGINT with messages still queued (a KEEP_ALL queue can hold many):
+    the recorder takes and writes them before it closes the bag, and says how many."""
+    import rclpy
+    from std_msgs.msg import String
+
+    from clothfold_ros.bag import BagReader
+    from clothfold_ros.nodes.recorder_node import RecorderNode
+
+    ctx = rclpy.Context()
+    rclpy.init(args=[], context=ctx, domain_id=195)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+    out = tmp_path / "queued.mcap"
+    try:
+        talker = rclpy.create_node("talker", context=ctx)
+        pub = talker.create_publisher(String, "/chatter", 10)
+        node = RecorderNode(str(out), topics=["/chatter"], tf=False)
+        deadline = time.monotonic() + 10
+        while not (node.subs and pub.get_subscription_count()) and time.monotonic() < deadline:
+            time.sleep(0.05)
+            node.discover()
+        for i in range(200):  # never spun: every message stays queued
+            pub.publish(String(data=str(i)))
+        pub.wait_for_all_acked()
+        rclpy.try_shutdown(context=ctx)  # what SIGINT does
+        node.destroy_node()
+        assert "recorder: 200 message(s) still queued at shutdown written" in capsys.readouterr().err
+        with BagReader(out) as bag:
+            assert bag.topics["/chatter"].message_count == 200
+            assert [q.reliability for q in bag.topics["/chatter"].offered_qos] == ["reliable"]  # as at subscription
         talker.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)

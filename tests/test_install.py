@@ -85,6 +85,7 @@ def test_readme_install_commands_build_and_fold(install_run):
     assert (share / "config" / "tables" / "middle" / "table.csv").is_file()
     assert (share / "config" / "tables" / "shape1" / "table.csv").is_file()
     assert not (share / "config" / "tables_1k2").exists()  # the first coarse tables stay in the checkout
+    assert (share / "config" / "tables" / "shape1" / "runs.jsonl").is_file()  # `clothfold tables` reads the run logs
     assert not (share / "config" / "tables" / "shape1" / "finals.npz").exists()  # sweep data stay in the checkout
 
 

@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable
 
 from .errors import BagError
-from .reader import BagMessage, BagReader
+from .reader import BagMessage, BagReader, bag_files
 from .writer import BagWriter
 
 
@@ -35,11 +37,13 @@ def filter_bag(source: str | os.PathLike, output: str | os.PathLike, *, topics: 
     """Write the messages of `source` on `topics` (default: all) whose topic does not match the
     regex `exclude`, logged in [start_ns, end_ns) (ns since the epoch) and for which `keep`
     returns True, into the new bag `output` (.mcap file or bag directory). BagError for an
-    unknown topic, a bad regex, an empty window or an output that exists (unless overwrite);
-    a failed write leaves no output behind."""
+    unknown topic, a bad regex, an empty window, a selection of no message, an output that
+    exists (unless overwrite) or that is, holds or lies inside the source. The bag is written
+    beside `output` and moved there when complete: a failed cut leaves `output` as it was."""
     src, out = Path(source), Path(output)
-    if src.resolve() == out.resolve():
-        raise BagError(f"{out}: the output must not be the source bag")
+    _check_apart(src, out)
+    if out.exists() and not overwrite:
+        raise BagError(f"{out} exists; choose another output or allow overwriting")
     try:
         pattern = re.compile(exclude) if exclude else None
     except re.error as err:
@@ -53,34 +57,44 @@ def filter_bag(source: str | os.PathLike, output: str | os.PathLike, *, topics: 
         if unknown:
             raise BagError(f"{src}: no topic {', '.join(unknown)} in the bag (has {', '.join(sorted(reader.topics))})")
         wanted = [t for t in wanted if not (pattern and pattern.search(t))]
-        writer = BagWriter(out, overwrite=overwrite, max_chunk_age=None)
+        if not wanted:
+            raise BagError(f"{src}: every topic selected is excluded by {exclude!r}")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=".filter-", dir=out.parent))  # beside it: a rename moves it there
         try:
-            for msg in reader.messages(wanted, start_ns, end_ns):
-                report.read += 1
-                if keep is not None and not keep(msg):
-                    continue
-                if msg.topic not in writer.topics:
-                    info = reader.topics[msg.topic]
-                    writer.add_topic(msg.topic, info.type, info.offered_qos, definition=info.definition,
-                                     type_hash=info.type_hash)
-                writer.write(msg.topic, msg.data, msg.log_time_ns, msg.publish_time_ns)
-                report.kept[msg.topic] = report.kept.get(msg.topic, 0) + 1
-            writer.close()
-        except BaseException:
-            if not writer.closed:
-                try:
-                    writer.close()
-                except Exception:  # noqa: BLE001 - the output is removed below either way
-                    pass
-            _remove(out)
-            raise
+            with BagWriter(staging / out.name, max_chunk_age=None) as writer:
+                for msg in reader.messages(wanted, start_ns, end_ns):
+                    report.read += 1
+                    if keep is not None and not keep(msg):
+                        continue
+                    if msg.topic not in writer.topics:
+                        info = reader.topics[msg.topic]
+                        writer.add_topic(msg.topic, info.type, info.offered_qos, definition=info.definition,
+                                         type_hash=info.type_hash)
+                    writer.write(msg.topic, msg.data, msg.log_time_ns, msg.publish_time_ns)
+                    report.kept[msg.topic] = report.kept.get(msg.topic, 0) + 1
+            if not report.kept:
+                raise BagError(f"{src}: no message selected ({report.read} read on {', '.join(wanted)}"
+                               f"{' in the time window' if start_ns is not None or end_ns is not None else ''})")
+            if out.exists():
+                _remove(out)
+            os.replace(staging / out.name, out)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
     return report
+
+
+def _check_apart(src: Path, out: Path) -> None:
+    """BagError when the output is the source, one of its files, or holds or lies inside it."""
+    s, o = src.resolve(), out.resolve()
+    files = [f.resolve() for f in bag_files(src)] if src.exists() else []
+    if s == o or o in files or s in o.parents or o in s.parents or any(o in f.parents for f in files):
+        raise BagError(f"{out}: the output must lie apart from the source bag {src} (not the bag, one of its "
+                       "files, or a directory holding or inside it)")
 
 
 def _remove(path: Path) -> None:
     if path.is_dir():
-        for child in path.iterdir():
-            child.unlink(missing_ok=True)
-        path.rmdir()
+        shutil.rmtree(path)
     else:
-        path.unlink(missing_ok=True)
+        path.unlink()

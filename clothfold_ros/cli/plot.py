@@ -22,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..lookup.plot import plot_best_worst, plot_landscape, plot_overview
-    from ..lookup.sweep_dir import BEST_WORST_PNG, LANDSCAPE_PNG, OVERVIEW_PNG, table_dirs
+    from ..lookup.sweep_dir import BEST_WORST_PNG, FINALS_NPZ, LANDSCAPE_PNG, OVERVIEW_PNG, table_dirs
 
     from ..nodes.resources import SOURCE_CHECKOUT
 
@@ -51,6 +51,11 @@ def run(args: argparse.Namespace) -> int:
         out = out_root / n if out_root else d
         try:
             print(plot_landscape(d, out / LANDSCAPE_PNG))
+            if not (d / FINALS_NPZ).is_file():  # an install, or a sweep not finished: no final meshes here
+                print(f"clothfold plot: {n}: no best/worst render: the final meshes (finals.npz) are not in {d} "
+                      "(an install does not carry them; a sweep writes them when its table is complete)",
+                      file=sys.stderr)
+                continue
             print(plot_best_worst(d, out / BEST_WORST_PNG))
         except (FileNotFoundError, ValueError) as err:
             print(f"clothfold plot: {n}: {err}", file=sys.stderr)

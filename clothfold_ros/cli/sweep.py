@@ -19,10 +19,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None,
                    help=f"tables root; the sweep writes <out>/<scenario>/ (default: the checkout's {TABLES_ROOT} "
                    f"from source, ./{TABLES_ROOT} on an install). A stage scenario starts from its previous "
-                   "stage's table in <out>, else from the package's shipped one")
+                   "stage's best final mesh: its table in <out>, else the package's shipped one (from source; an "
+                   "install carries no final meshes)")
     p.add_argument("--points", default="all", help="'all' (134), 'alternate', 'every:R:T' or comma list of fan indices")
-    p.add_argument("--max-area", type=float, default=5e-4,
-                   help="max triangle area (m^2); default 5e-4 (1.2K triangles, the shipped tables), 5e-5 = full")
+    p.add_argument("--max-area", type=float, default=5e-5,
+                   help="max triangle area (m^2); default 5e-5 (12K triangles: the study's resolution, the shipped "
+                   "tables'); 5e-4 = 1.2K triangles, the first coarse tables (config/tables_1k2)")
     add_stepping_options(p)
     p.add_argument("--max-newton", type=int, default=SimConfig.max_newton_iterations,
                    help="Newton iterations per step before failing (default: the simulator's)")
@@ -130,7 +132,7 @@ def previous_stage(out: Path, name: str) -> Path:
     shipped table (from source), else <out>/<name> (reported as missing). FileNotFoundError when
     only an installed table exists: an install carries the tables, not the final meshes a stage
     starts from."""
-    from ..lookup.sweep_dir import TABLE, has_runs
+    from ..lookup.sweep_dir import FINALS, FINALS_NPZ, TABLE, has_runs
 
     here = out / name
     if has_runs(here):
@@ -139,7 +141,7 @@ def previous_stage(out: Path, name: str) -> Path:
         shipped = shipped_tables() / name
     except RuntimeError:
         return here
-    if has_runs(shipped):
+    if has_runs(shipped) and ((shipped / FINALS_NPZ).is_file() or (shipped / FINALS).is_dir()):
         return shipped
     if (shipped / TABLE).is_file():
         raise FileNotFoundError(f"the next stage starts from {name!r}'s best final mesh, and its table at {shipped} "

@@ -49,8 +49,8 @@ def fan_points(selection: str = "all") -> np.ndarray:
 
 
 #: Fan subsamples from coarse to fine (`fan_points` selections): a sweep runs the points of each
-#: before those of the next, so a table left partial covers the whole fan, first at the shipped
-#: coarse tables' spacing, rather than the lowest rings only.
+#: before those of the next, so a table left partial covers the whole fan, first at the first
+#: coarse tables' spacing (config/tables_1k2), rather than the lowest rings only.
 COVERAGE_LEVELS: tuple[str, ...] = ("every:4:6", "every:3:3", "every:2:2", "all")
 
 

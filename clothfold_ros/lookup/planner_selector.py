@@ -48,7 +48,7 @@ class TableSelector:
         if len(self.unusable) == len(self.tables):
             raise ValueError(f"TableSelector: no table in {self.table_dir} has a successful run")
         #: partial tables (a sweep still under way) that do not yet hold the coarse subsample of the
-        #: fan a sweep runs first (fan_selection.COVERAGE_LEVELS[0], the shipped coarse tables' points),
+        #: fan a sweep runs first (fan_selection.COVERAGE_LEVELS[0], the first coarse tables' points, config/tables_1k2),
         #: left out while a complete table exists: they rank only part of the fan and would
         #: confine the choice to it (tables swept ring by ring from the lowest height before
         #: 2026-12-06 hold the low corner)

@@ -8,6 +8,7 @@ completed.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,7 +16,7 @@ import numpy as np
 
 from .scenario import SCENARIOS, generation_order
 from .select import middle_of_fan
-from .sweep_dir import RUNS, read_runs
+from .sweep_dir import RUNS, best_row, read_runs
 
 BEGIN = "<!-- table-summary (clothfold tables) -->"
 END = "<!-- /table-summary -->"
@@ -33,15 +34,19 @@ class LandscapeSummary:
 
     @property
     def ok(self) -> list[dict]:
-        return [r for r in self.rows if r["success"]]
+        """The successful runs (with a finite loss)."""
+        return [r for r in self.rows if r["success"] and math.isfinite(r["loss_m"])]
 
     def losses(self) -> dict[int, float]:
         """Fan point -> loss (m) of the successful runs."""
         return {int(r["point"]): float(r["loss_m"]) for r in self.ok}
 
     def extreme(self, worst: bool) -> dict | None:
+        """The successful run of largest (worst) or least loss."""
+        if not worst:
+            return best_row(self.rows)
         ok = self.ok
-        return (max if worst else min)(ok, key=lambda r: r["loss_m"]) if ok else None
+        return max(ok, key=lambda r: (r["loss_m"], -r["point"])) if ok else None
 
     def spearman(self, other: "LandscapeSummary") -> float:
         """Spearman's rho of the losses over the points both completed (NaN under 3)."""

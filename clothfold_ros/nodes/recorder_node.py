@@ -29,7 +29,7 @@ import sys
 import time
 from typing import Any
 
-from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.event_handler import SubscriptionEventCallbacks, UnsupportedEventTypeError
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
@@ -82,6 +82,8 @@ class RecorderNode(Node):
         self.matched: set[str] = set()  # topics whose subscription has matched a publisher (logged once)
         self.skipped: dict[str, str] = {}  # topic -> reason it is not recorded
         self.lost: dict[str, int] = {}  # topic -> messages the middleware reports lost before they reached us
+        self._lost_unsupported = False
+        self._publishers_seen: dict[str, list] = {}  # topic -> its publishers' info at subscription
         self.tf = tf and self._selected(TF_TOPIC)
         self._tf_warned: set[str] = set()
         if tf and self._selected(TF_STATIC_TOPIC):
@@ -110,7 +112,8 @@ class RecorderNode(Node):
             if len(types) != 1:
                 self._skip(topic, f"has {len(types)} types ({', '.join(types)})")
                 continue
-            offers = [i.qos_profile for i in self.get_publishers_info_by_topic(topic)]
+            publishers = self.get_publishers_info_by_topic(topic)
+            offers = [i.qos_profile for i in publishers]
             if not offers:
                 continue  # only subscribers so far: wait for a publisher
             try:
@@ -122,12 +125,25 @@ class RecorderNode(Node):
             except BagError as err:
                 self._skip(topic, str(err))
                 continue
-            self.subs[topic] = self.create_subscription(
-                cls, topic, lambda data, info, t=topic, ty=types[0]: self._on_message(t, ty, data, info),
-                subscription_qos(offers), raw=True,
-                event_callbacks=SubscriptionEventCallbacks(message_lost=lambda s, t=topic: self._on_lost(t, s)))
+            self.subs[topic] = self._subscribe(cls, topic, types[0], subscription_qos(offers))
+            self._publishers_seen[topic] = publishers  # the channel's offers if its first message comes at shutdown
             self.get_logger().info(f"recording {topic} ({types[0]})")
         self._report_matches()
+
+    def _subscribe(self, cls: Any, topic: str, type_name: str, qos: QoSProfile) -> Any:
+        """A raw subscription writing to the bag, with a message-lost handler where the middleware
+        has that event (without one, said once: losses are then not counted)."""
+        def on_message(data: bytes, info: dict) -> None:
+            self._on_message(topic, type_name, data, info)
+
+        try:
+            return self.create_subscription(cls, topic, on_message, qos, raw=True, event_callbacks=SubscriptionEventCallbacks(
+                message_lost=lambda status: self._on_lost(topic, status)))
+        except UnsupportedEventTypeError:
+            if not self._lost_unsupported:
+                self._lost_unsupported = True
+                self.get_logger().warning("this middleware reports no lost messages: losses are not counted")
+            return self.create_subscription(cls, topic, on_message, qos, raw=True)
 
     def _report_matches(self) -> None:
         for topic, sub in self.subs.items():
@@ -154,7 +170,10 @@ class RecorderNode(Node):
         log_ns = int(info.get("received_timestamp") or 0) or time.time_ns()
         pub_ns = int(info.get("source_timestamp") or 0) or log_ns
         if topic not in self.writer.topics:  # channel at first message: offers of publishers known by now
-            pubs = self.get_publishers_info_by_topic(topic)
+            try:
+                pubs = self.get_publishers_info_by_topic(topic)
+            except Exception:  # noqa: BLE001 - the context is shut down (written at shutdown): those at subscription
+                pubs = self._publishers_seen.get(topic, [])
             type_hash = message_definition(type_name).type_hash
             if not type_hash and pubs:
                 type_hash = str(pubs[0].topic_type_hash)
@@ -193,10 +212,31 @@ class RecorderNode(Node):
         self._add_tf_topic(TF_TOPIC, TF_QOS)
         self.writer.write(TF_TOPIC, encode_tf_message([t]), log_ns, pub_ns)
 
+    def _drain(self) -> int:
+        """Write the messages received but not yet handed to a callback (the executor stops at
+        SIGINT with them still queued; they can be taken after the context is shut down)."""
+        n = 0
+        for topic, sub in list(self.subs.items()):
+            try:
+                while True:
+                    with sub.handle:
+                        taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                    if taken is None:
+                        break
+                    sub.callback(*taken)
+                    n += 1
+            except Exception as err:  # noqa: BLE001 - a subscription torn down: what was written stays
+                print(f"recorder: could not take the messages still queued on {topic}: {type(err).__name__}: {err}",
+                      file=sys.stderr, flush=True)
+        return n
+
     def destroy_node(self) -> None:
-        """Close the bag (complete file with summary) and report."""
+        """Write what is still queued, close the bag (complete file with summary) and report."""
         if not self.writer.closed:
             try:
+                if (queued := self._drain()):
+                    print(f"recorder: {queued} message(s) still queued at shutdown written", file=sys.stderr,
+                          flush=True)
                 self.writer.close()
             except Exception as err:  # noqa: BLE001 - e.g. disk full: say so, the file lacks its summary
                 print(f"bag NOT closed: {self.output}: {type(err).__name__}: {err}; its messages up to the last "
