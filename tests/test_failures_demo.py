@@ -104,3 +104,16 @@ def test_killed_backend_ends_the_demo_promptly(tmp_path):
     assert "kinematic_robot_node" in out and "process exited" in out, out[-3000:]
     assert re.search(r"^\[demo\]   trajectory_node: .*\S", out, re.M), out[-3000:]
     assert not [n for n, pid in pids.items() if _alive(pid)], out[-3000:]
+
+
+def test_a_backend_without_cloth_reports_no_loss_in_words(tmp_path):
+    """The kinematic backend reports NaN for the loss (it has no cloth): the demo says so instead
+    of printing 'loss nan m'."""
+    demo = Demo(tmp_path, "no-cloth", "--quiet")
+    try:
+        demo.wait_line(r"\[demo\] left_sleeve: success, no loss \(the backend simulates no cloth\)", 120)
+        demo.wait_line(r"\[demo\] left_sleeve: no loss \(the backend simulates no cloth\) ok", 60)
+        assert demo.finish() == 0
+    finally:
+        demo.finish(5)
+    assert not any("nan" in ln for ln in demo.lines if ln.startswith("[demo] left_sleeve")), demo.lines

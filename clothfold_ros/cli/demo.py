@@ -24,6 +24,11 @@ from ..folding import FOLD_NAMES, FOLD_SEQUENCE
 from ..nodes.backends import BACKENDS, DEFAULT_BACKEND
 
 
+
+def _loss_text(loss: float) -> str:
+    """A fold result's loss for the demo's lines (a backend without cloth reports none: NaN)."""
+    return f"loss {loss:.6f} m" if math.isfinite(loss) else "no loss (the backend simulates no cloth)"
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="fold the default shirt's left sleeve through the ROS pipeline; record a bag")
     demo_backends = [b for b in BACKENDS.values() if b.demo]
@@ -144,7 +149,7 @@ def run(args: argparse.Namespace) -> int:
                     pictures.planned(resp.spec)
                 res = _wait_result(client, launcher, fold, args.timeout, after=before)
                 losses.append((fold, res.success, res.loss, res.reason))
-                print(f"[demo] {fold}: {'success' if res.success else 'FAILED'}, loss {res.loss:.6f} m"
+                print(f"[demo] {fold}: {'success' if res.success else 'FAILED'}, {_loss_text(res.loss)}"
                       + (f" ({res.reason})" if res.reason else "") + f", {res.steps} steps", flush=True)
                 if pictures is not None:
                     png = pictures.finished(stage, fold, res)
@@ -189,7 +194,7 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(signal.SIGTERM, old_term)
     print("[demo] ---", flush=True)
     for fold, ok, loss, reason in losses:
-        print(f"[demo] {fold}: loss {loss:.6f} m {'ok' if ok else 'FAILED ' + reason}", flush=True)
+        print(f"[demo] {fold}: {_loss_text(loss)} {'ok' if ok else 'FAILED ' + reason}", flush=True)
     print(f"[demo] bag: {bag} ({closed or 'recorder did not report closing the bag'})", flush=True)
     print(f"[demo] wall time {time.monotonic() - tic:.1f} s; all processes stopped", flush=True)
     return code
