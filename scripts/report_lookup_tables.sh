@@ -2,9 +2,9 @@
 # Figures and reports of a lookup-table root, as a sweep finishes tables (or at a checkpoint):
 # every table's landscape.png and best_worst.png, the 13 landscapes side by side
 # (ROOT/landscapes.png), the leave-one-out regret over the complete tables (ROOT/regret.md) and
-# the table-status block of each Markdown file named. The regret rows that README.md and
-# docs/lookup.md quote are held against ROOT/regret.md by tests/test_lookup_regret_report.py:
-# copy them over by hand, with the text around them.
+# the table-status, table-summary and regret-summary blocks of each Markdown file named (a file
+# without a block keeps its text). tests/test_lookup_regret_report.py holds README.md's and
+# docs/lookup.md's regret rows to the tables; the prose around them is updated by hand.
 # Usage: scripts/report_lookup_tables.sh [ROOT [MARKDOWN ...]]
 #   scripts/report_lookup_tables.sh config/tables README.md docs/lookup.md config/tables/README.md
 set -eu
@@ -27,7 +27,7 @@ for csv in "$TABLES"/*/table.csv; do
   fi
 done
 clothfold plot --overview --tables "$TABLES"       # the 13 landscapes side by side
-clothfold regret --tables "$TABLES" --out "$TABLES/regret.md" > /dev/null
+clothfold regret --tables "$TABLES" --out "$TABLES/regret.md" --write "$@" > /dev/null
 if [ "$#" -gt 0 ]; then
   clothfold tables --tables "$TABLES" --write "$@"
 else

@@ -77,6 +77,28 @@ def test_regret_writes_its_report_and_names_partial_tables(tmp_path: Path, capsy
     assert code == 2 and "at least two" in err
 
 
+def test_regret_writes_its_summary_block_where_a_file_has_one(tmp_path: Path, capsys) -> None:
+    from clothfold_ros.cli.regret import BEGIN, END
+
+    pts = np.arange(0, 134, 2)
+    _write_table_dir(tmp_path / "t" / "shape1", _table("shape1", _bowl(32)[pts], points=pts))
+    _write_table_dir(tmp_path / "t" / "T1", _table("T1", _bowl(40)[pts] + 0.001, points=pts))
+    doc, plain = tmp_path / "doc.md", tmp_path / "plain.md"
+    doc.write_text(f"intro\n{BEGIN}\nOLD ROWS\n{END}\nafter\n")
+    plain.write_text("no block here\n")
+    code, out, err = _regret(capsys, "--tables", str(tmp_path / "t"), "--write", str(doc), str(plain))
+    assert code == 0, err
+    text = doc.read_text()
+    assert "OLD ROWS" not in text and text.startswith("intro\n") and text.endswith("after\n")
+    assert text.split(BEGIN)[1].split(END)[0].strip() == "\n\n".join(out.split("\n\n")[:2]).strip()
+    assert all(row in text for row in _summary_rows(out))
+    assert plain.read_text() == "no block here\n"
+    broken = tmp_path / "broken.md"
+    broken.write_text(f"{BEGIN}\nA\n{END}\n{BEGIN}\n")
+    code, out, err = _regret(capsys, "--tables", str(tmp_path / "t"), "--write", str(doc), str(broken))
+    assert code == 2 and "need exactly one" in err
+
+
 def test_tie_margin_report_spans_argmin_to_fan_middle(tmp_path: Path, capsys) -> None:
     """A tie margin of 0 picks the smoothed minimum (the other table's bowl centre, far from the
     middle); one wider than the whole landscape picks the fan middle for every held-out table."""

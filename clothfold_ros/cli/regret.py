@@ -7,6 +7,9 @@ from pathlib import Path
 
 from ._options import add_tables_option, tables_arg
 
+BEGIN = "<!-- regret-summary (clothfold regret) -->"
+END = "<!-- /regret-summary -->"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("regret", help="leave-one-scenario-out regret of the lookup selection")
@@ -14,12 +17,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="also write the Markdown report here")
     p.add_argument("--partial", action="store_true",
                    help="also hold out and choose from partial tables (default: complete tables only)")
+    p.add_argument("--write", type=Path, nargs="*", default=[],
+                   help="also replace the regret-summary block (the rules' summary table) of these Markdown files; "
+                   "a file without one is left as it is")
     p.add_argument("--tie-margins", default=None, metavar="MM,MM,...",
                    help="also report the robust rule's regret for each of these tie margins (mm; default rule: 0.5)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..lookup.doc_blocks import replace_block
     from ..lookup.regret import RULES, evaluate, report, summary, tie_margin_report
     from ..lookup.table import load_tables
 
@@ -34,15 +41,20 @@ def run(args: argparse.Namespace) -> int:
             head += ("; partial tables included: " if args.partial else "; partial tables left out: ") + \
                 ", ".join(f"{n} ({len(t.point)} points)" for n, t in sorted(load_tables(tables_arg(args)).items())
                           if n in partial)
-        text = "\n\n".join([head, summary(rows)] + [report(r, RULES[name][1]) for name, r in rows.items()])
+        table = summary(rows)
+        text = "\n\n".join([head, table] + [report(r, RULES[name][1]) for name, r in rows.items()])
         if args.tie_margins:
             text += "\n\n" + tie_margin_report(tables, _margins_m(args.tie_margins))
-    except (FileNotFoundError, ValueError, RuntimeError) as err:
+        edited = {f: replace_block(doc, f"{head}\n\n{table}", BEGIN, END) for f in args.write
+                  if BEGIN in (doc := f.read_text()) or END in doc}
+    except (FileNotFoundError, ValueError, RuntimeError, OSError) as err:
         print(f"clothfold regret: {err}", file=sys.stderr)
         return 2
     if args.out:  # before printing: a closed stdout (| head) must not lose the file
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(text + "\n")
+    for f, new in edited.items():
+        f.write_text(new)
     print(text)
     return 0
 
