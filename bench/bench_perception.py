@@ -259,12 +259,12 @@ def bench_bag(args) -> None:
     for m in BagReader(args.bag).messages(list(kinds)):
         msg = deserialize_message(m.data, kinds[m.topic])
         stamp = rc.stamp_ns(msg.header, m.topic)
+        if m.topic in ("/cloth/state", "/cloth/points"):
+            logged[(m.topic, stamp)] = m.log_time_ns
         if m.topic == "/cloth/state":
             states[stamp] = rc.cloth_state_from_msg(msg).vertices
-            logged[(m.topic, stamp)] = m.log_time_ns
         elif m.topic == "/cloth/points":
             events.append((stamp, 1, cloud_from_msg(msg)))
-            logged[(m.topic, stamp)] = m.log_time_ns
         else:
             events.append((stamp, 0, rc.fold_spec_from_msg(msg) if m.topic == "/fold/active" else msg))
     events.sort(key=lambda e: e[:2])

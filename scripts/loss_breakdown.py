@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from clothfold_ros.lookup import sweep_dir as layout
+from clothfold_ros.loss import mean_vertex_distance
 from clothfold_ros.lookup.sweep import stage_target
 
 MOVED = 0.01  # m: a vertex whose target moved more than this belongs to the folded part
@@ -28,12 +29,12 @@ def breakdown(final: np.ndarray, target: np.ndarray, base: np.ndarray) -> dict[s
     and the part that stays: mean distance, mean |dz|, mean xy distance, mean offset (x, y, z)."""
     err = final - target
     moved = np.linalg.norm(target - base, axis=1) > MOVED
-    out = {"loss": float(np.linalg.norm(err, axis=1).mean() * 1e3), "moved_fraction": float(moved.mean())}
+    out = {"loss": mean_vertex_distance(final, target) * 1e3, "moved_fraction": float(moved.mean())}
     for name, m in (("moved", moved), ("stayed", ~moved)):
         if not m.any():
             continue
         e = err[m]
-        out[f"{name}_loss"] = float(np.linalg.norm(e, axis=1).mean() * 1e3)
+        out[f"{name}_loss"] = mean_vertex_distance(final[m], target[m]) * 1e3
         out[f"{name}_dz"] = float(np.abs(e[:, 2]).mean() * 1e3)
         out[f"{name}_dxy"] = float(np.linalg.norm(e[:, :2], axis=1).mean() * 1e3)
         for k, axis in enumerate("xyz"):
@@ -63,13 +64,13 @@ def main(argv: list[str] | None = None) -> int:
     if start:
         x0, base = layout.read_start(start)
         print(f"{args.scenario}: start state (the previous stage's best result) "
-              f"{np.linalg.norm(x0 - base, axis=1).mean() * 1e3:.1f} mm from that stage's target (inherited)")
+              f"{mean_vertex_distance(x0, base) * 1e3:.1f} mm from that stage's target (inherited)")
     else:
         from clothfold_ros.lookup.sweep import _scene
 
         base = x0 = _scene(layout.read_settings(d)).flat
     print(f"{args.scenario}: the loss had the cloth not moved (its start state against the target): "
-          f"{np.linalg.norm(x0 - target, axis=1).mean() * 1e3:.1f} mm")
+          f"{mean_vertex_distance(x0, target) * 1e3:.1f} mm")
     for p in points:
         if p not in rows:
             print(f"point {p}: no run", file=sys.stderr)

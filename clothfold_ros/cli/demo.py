@@ -24,10 +24,10 @@ from ..folding import FOLD_NAMES, FOLD_SEQUENCE
 from ..nodes.backends import BACKENDS, DEFAULT_BACKEND
 
 
-
 def _loss_text(loss: float) -> str:
     """A fold result's loss for the demo's lines (a backend without cloth reports none: NaN)."""
     return f"loss {loss:.6f} m" if math.isfinite(loss) else "no loss (the backend simulates no cloth)"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="fold the default shirt's left sleeve through the ROS pipeline; record a bag")

@@ -45,8 +45,8 @@ def run(args: argparse.Namespace) -> int:
         text = "\n\n".join([head, table] + [report(r, RULES[name][1]) for name, r in rows.items()])
         if args.tie_margins:
             text += "\n\n" + tie_margin_report(tables, _margins_m(args.tie_margins))
-        edited = {f: replace_block(doc, f"{head}\n\n{table}", BEGIN, END) for f in args.write
-                  if BEGIN in (doc := f.read_text()) or END in doc}
+        edited = {f: replace_block(f.read_text(), f"{head}\n\n{table}", BEGIN, END, required=False)
+                  for f in args.write}
     except (FileNotFoundError, ValueError, RuntimeError, OSError) as err:
         print(f"clothfold regret: {err}", file=sys.stderr)
         return 2

@@ -29,12 +29,8 @@ def run(args: argparse.Namespace) -> int:
             raise FileNotFoundError(f"{root} is not a directory")
         text = status.markdown(status.tables_status(root))
         landscapes = summary.markdown(summary.landscape_summaries(root))
-        edited = {}
-        for f in args.write:
-            new = status.replace_block(f.read_text(), text)
-            if summary.BEGIN in new or summary.END in new:
-                new = replace_block(new, landscapes, summary.BEGIN, summary.END)
-            edited[f] = new
+        edited = {f: replace_block(status.replace_block(f.read_text(), text), landscapes, summary.BEGIN, summary.END,
+                                   required=False) for f in args.write}
     except (OSError, ValueError) as err:
         print(f"clothfold tables: {err}", file=sys.stderr)
         return 2

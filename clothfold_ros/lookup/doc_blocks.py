@@ -5,9 +5,12 @@ from __future__ import annotations
 import re
 
 
-def replace_block(text: str, block: str, begin: str, end: str) -> str:
+def replace_block(text: str, block: str, begin: str, end: str, *, required: bool = True) -> str:
     """`text` with the part between `begin` and `end` replaced by `block`; ValueError unless
-    the file holds exactly one such block."""
+    the file holds exactly one such block (not required: a text without either marker is
+    returned as it is)."""
+    if not required and begin not in text and end not in text:
+        return text
     pattern = re.compile(re.escape(begin) + r".*?" + re.escape(end), re.S)
     found = len(pattern.findall(text))
     if found != 1 or text.count(begin) != 1 or text.count(end) != 1:

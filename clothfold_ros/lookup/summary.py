@@ -41,10 +41,12 @@ class LandscapeSummary:
         """Fan point -> loss (m) of the successful runs."""
         return {int(r["point"]): float(r["loss_m"]) for r in self.ok}
 
-    def extreme(self, worst: bool) -> dict | None:
-        """The successful run of largest (worst) or least loss."""
-        if not worst:
-            return best_row(self.rows)
+    def best(self) -> dict | None:
+        """The successful run of least loss."""
+        return best_row(self.rows)
+
+    def worst(self) -> dict | None:
+        """The successful run of largest loss."""
         ok = self.ok
         return max(ok, key=lambda r: (r["loss_m"], -r["point"])) if ok else None
 
@@ -83,7 +85,7 @@ def markdown(summaries: list[LandscapeSummary]) -> str:
     for s in summaries:
         losses = s.losses()
         v = np.array(list(losses.values()))
-        best = s.extreme(False)
+        best = s.best()
         med = f"{np.median(v) * 1e3:.2f}" if len(v) else "-"
         within = f"{int(np.sum(v <= SUCCESS_M))}" if len(v) else "-"
         plateau = f"{int(np.sum(v <= best['loss_m'] + PLATEAU_M))}" if best else "-"
@@ -91,6 +93,6 @@ def markdown(summaries: list[LandscapeSummary]) -> str:
         rho = "-" if ref is None or s is ref else f"{s.spearman(ref):.2f}"
         failed = len(s.rows) - len(s.ok)
         runs = f"{len(s.rows)}" + (f" ({failed} failed)" if failed else "")
-        lines.append(f"| {s.scenario} | {runs} | {_point(best)} | {med} | {_point(s.extreme(True))} | {within} | "
+        lines.append(f"| {s.scenario} | {runs} | {_point(best)} | {med} | {_point(s.worst())} | {within} | "
                      f"{plateau} | {mid} | {rho} |")
     return "\n".join(lines)
