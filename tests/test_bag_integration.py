@@ -349,3 +349,47 @@ def test_messages_still_queued_at_shutdown_are_written(tmp_path, monkeypatch, ca
         talker.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+def test_a_middleware_without_the_message_lost_event_still_records(tmp_path, monkeypatch, capsys):
+    """Where the middleware has no message-lost event, rclpy raises UnsupportedEventTypeError for
+    the handler: the recorder subscribes without it, says once that losses are not counted, and
+    records (the warning is said once: `_lost_unsupported`)."""
+    import rclpy
+    from rclpy.event_handler import UnsupportedEventTypeError
+    from std_msgs.msg import String
+
+    from clothfold_ros.bag import BagReader
+    from clothfold_ros.nodes.recorder_node import RecorderNode
+
+    ctx = rclpy.Context()
+    rclpy.init(args=[], context=ctx, domain_id=196)
+    init = rclpy.node.Node.__init__
+    monkeypatch.setattr(rclpy.node.Node, "__init__", lambda self, *a, **k: init(self, *a, **{"context": ctx, **k}))
+    create = rclpy.node.Node.create_subscription
+
+    def no_lost_event(self, *a, event_callbacks=None, **k):
+        if event_callbacks is not None and event_callbacks.message_lost is not None:
+            raise UnsupportedEventTypeError("message lost")
+        return create(self, *a, **k)
+
+    monkeypatch.setattr(rclpy.node.Node, "create_subscription", no_lost_event)
+    out = tmp_path / "nolost.mcap"
+    try:
+        talker = rclpy.create_node("talker", context=ctx)
+        pub = talker.create_publisher(String, "/chatter", 10)
+        node = RecorderNode(str(out), topics=["/chatter"], tf=False)
+        deadline = time.monotonic() + 10
+        while not (node.subs and pub.get_subscription_count()) and time.monotonic() < deadline:
+            time.sleep(0.05)
+            node.discover()
+        pub.publish(String(data="kept"))
+        pub.wait_for_all_acked()
+        rclpy.try_shutdown(context=ctx)
+        node.destroy_node()
+        with BagReader(out) as bag:
+            assert bag.topics["/chatter"].message_count == 1
+        talker.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    assert node.subs and node._lost_unsupported

@@ -37,3 +37,9 @@ def test_the_chain_tracks_a_recorded_sequence_where_a_fresh_fit_fails(bag: str, 
     # where the cloth slid in a side fold, the previous shape with its lines refitted is taken
     if slid:
         assert any(r[2] == "prior shape" for r in rows if r[0] in ("left_side", "right_side")), rows
+
+
+def test_bag_subset_without_a_bag_is_refused() -> None:
+    out = subprocess.run([sys.executable, str(ROOT / "bench" / "bench_perception.py"), "--bag-subset", "x.mcap"],
+                         capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert out.returncode == 2 and "--bag-subset needs --bag" in out.stderr, out.stderr
