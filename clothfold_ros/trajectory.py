@@ -17,6 +17,7 @@ from .pose import Pose, slerp
 MAX_HEIGHT_RATIO = 1.5
 MAX_TILT_DEG = 90.0
 _ARC_SAMPLES = 4097  # samples of the arc-length table along the Bezier parameter
+TABLE_TOLERANCE_M = 1e-6  # how far below the table top (z = 0) a gripper path may reach (rounding)
 
 
 def fan(n_heights: int = 14) -> np.ndarray:
@@ -86,7 +87,8 @@ def bezier_control_point(
 class GripperPath:
     """Quadratic Bezier from start.position via `control` to end.position, min-jerk
     timed along arc length over `duration` s; orientation slerped by the same fraction.
-    Times outside [0, duration] clamp to the ends."""
+    Times outside [0, duration] clamp to the ends. A path that reaches below the table top
+    (z < 0 beyond TABLE_TOLERANCE_M) is refused: the table is z = 0 and a gripper cannot pass it."""
 
     def __init__(self, start: Pose, end: Pose, control: np.ndarray, duration: float) -> None:
         if not (math.isfinite(duration) and duration > 0):
@@ -96,9 +98,11 @@ class GripperPath:
             raise ValueError(f"control point must be finite, got {c}")
         self.start, self.end, self.control, self.duration = start, end, c, float(duration)
         self._ctrl = np.stack([start.position, c, end.position])
+        u_low, z_low = self.lowest_point()
+        if z_low < -TABLE_TOLERANCE_M:
+            raise ValueError(f"gripper path reaches z = {z_low * 1e3:.3f} mm at Bezier parameter {u_low:.3f}: "
+                             "below the table top (z = 0)")
         u = np.linspace(0.0, 1.0, _ARC_SAMPLES)
-        # (a path below the table top is refused where it is executed: trajectory_node's workspace,
-        # z >= 0, after the search-space limits that say why; the simulator's grippers)
         seg = np.linalg.norm(np.diff(self.curve(u), axis=0), axis=1)
         self._u = u
         self._arc = np.concatenate([[0.0], np.cumsum(seg)])  # m, arc length at u
@@ -108,6 +112,20 @@ class GripperPath:
         u = np.asarray(u, dtype=float)[..., None]
         s, c, e = self._ctrl
         return (1 - u) ** 2 * s + 2 * u * (1 - u) * c + u**2 * e
+
+    def lowest_point(self) -> tuple[float, float]:
+        """(u, z) of the curve's lowest point, u in [0, 1], z in m: the ends or the vertex of
+        the quadratic z(u), whichever is lower."""
+        s, c, e = self._ctrl[:, 2]
+        candidates = [0.0, 1.0]
+        curvature = s - 2.0 * c + e  # z''(u) / 2
+        if curvature > 0.0:
+            u_vertex = (s - c) / curvature
+            if 0.0 < u_vertex < 1.0:
+                candidates.append(float(u_vertex))
+        zs = [float(self.curve(u)[2]) for u in candidates]
+        k = int(np.argmin(zs))
+        return candidates[k], zs[k]
 
     def _curve_tangent(self, u: np.ndarray) -> np.ndarray:
         s, c, e = self._ctrl

@@ -184,3 +184,28 @@ def test_bad_inputs():
         GripperPath(spec.start_poses[0], spec.end_poses[0], S, -1.0)
     with pytest.raises(ValueError, match="control point"):
         GripperPath(spec.start_poses[0], spec.end_poses[0], [np.nan, 0, 0], 1.0)
+
+
+def test_path_below_the_table_top_is_refused_with_where():
+    """The table is z = 0: a path whose curve dips below it is refused when built, with the depth
+    and the Bezier parameter; the analytic lowest point matches a dense sampling of the curve."""
+    q = [0, 0, 0, 1]
+    a, b = Pose([0.0, 0.0, 0.01], q), Pose([0.2, 0.0, 0.01], q)
+    with pytest.raises(ValueError, match=r"z = -4\.000 mm at Bezier parameter 0\.500: below the table top"):
+        GripperPath(a, b, [0.1, 0.0, -0.018], 4.0)  # vertex z(0.5) = 0.005 - 0.009 = -4 mm
+    with pytest.raises(ValueError, match=r"z = -50\.000 mm at Bezier parameter 0\.000"):
+        GripperPath(Pose([0.0, 0.0, -0.05], q), b, [0.1, 0.0, 0.2], 4.0)  # the start itself
+    GripperPath(Pose([0.0, 0.0, 0.0], q), Pose([0.2, 0.0, 0.0], q), [0.1, 0.0, 0.0], 4.0)  # on the table: allowed
+    for control in ([0.1, 0.0, 0.3], [0.1, 0.05, -0.01], [0.1, 0.0, 0.004]):
+        path = GripperPath(a, b, control, 4.0)
+        u, z = path.lowest_point()
+        dense = path.curve(np.linspace(0.0, 1.0, 100001))[:, 2]
+        assert z == pytest.approx(dense.min(), abs=1e-12) and path.curve(u)[2] == pytest.approx(z)
+
+
+def test_every_fan_point_stays_above_the_table():
+    """The search space itself never reaches below the table (both tilt signs, sleeve and middle)."""
+    for spec in sleeve_spec():
+        for h, tilt in fan():
+            for path in FoldTrajectory(spec, h, tilt).paths:
+                assert path.lowest_point()[1] >= -1e-12, (spec.name, h, tilt)

@@ -10,6 +10,7 @@ import os
 import re
 import signal
 import time
+from copy import deepcopy
 
 import numpy as np
 import pytest
@@ -67,19 +68,22 @@ def test_kinematic_pipeline_and_bad_inputs(pipeline):
     assert res.success and math.isnan(res.loss) and res.steps == 50  # 2 s / 0.04 s
     _wait_log(launcher, "trajectory_node", "still running")
 
-    # goals straight to trajectory_node: too fast, outside the workspace, NaN
+    # goals straight to trajectory_node: too fast, outside the workspace, NaN, below the table
     good = client.plan("right_sleeve", execute=False).spec
     fast = fold_spec_from_msg(good)
     fast_msg = type(good)(**{k: getattr(good, k) for k in good.get_fields_and_field_types()})
     fast_msg.duration = 0.6
     assert not client.send_goal(fast_msg)
-    far = type(good)(**{k: getattr(good, k) for k in good.get_fields_and_field_types()})
+    far = deepcopy(good)  # its own poses: a shallow copy would move good's end too
     far.end_poses[0].position.x = 5.0
     assert not client.send_goal(far)
     nan = type(good)(**{k: getattr(good, k) for k in good.get_fields_and_field_types()})
     nan.tilt_deg = math.nan
     assert not client.send_goal(nan)
-    for words in ("exceeds the limit", "leaves the workspace", "not finite"):
+    low = deepcopy(good)
+    low.start_poses[0].position.z = -0.05
+    assert not client.send_goal(low)
+    for words in ("exceeds the limit", "leaves the workspace", "not finite", "below the table top"):
         _wait_log(launcher, "trajectory_node", words)
     assert fast.spec.n_grippers == 1
 
