@@ -80,3 +80,17 @@ def test_documented_summaries_are_the_tables() -> None:
             assert row in block, f"{doc}: stale summary row {row!r}: clothfold tables --write {doc}"
         assert re.search(r"\| shape1 \| 134 \| \(0\.238, 20\.0\) 0\.92 \|", block)
         assert np.isfinite(float(_row(block, "T8")[8]))
+
+
+def test_summary_counts_the_sweeps_fan_points_as_status_does(tmp_path: Path) -> None:
+    """A run at a point the sweep does not cover (its provenance lists 0-2) is left out of the
+    summary's runs, best and median, as `status` leaves it out of the count."""
+    from clothfold_ros.lookup import status
+
+    d = tmp_path / "shape1"
+    _write(d, {0: 4.0, 1: 5.0, 2: 6.0, 7: 0.1})  # point 7: a stray run of least loss
+    (d / sweep_dir.PROVENANCE).write_text(json.dumps({"fan_points": [0, 1, 2]}))
+    row = _row(summary.markdown(summary.landscape_summaries(tmp_path)), "shape1")
+    assert row[1] == "3" and row[2].endswith(" 4.00") and row[3] == "5.00", row
+    st = status.table_status(d)
+    assert (st.runs, st.wanted, st.best["point"]) == (3, 3, 0)

@@ -59,15 +59,28 @@ def _run_cpu_s(row: dict) -> float:
     return float(row.get("cpu_time_s") or row.get("wall_time_s") or 0.0)
 
 
+def wanted_points(d: str | Path) -> set[int]:
+    """The fan points a sweep directory covers: its provenance's, else the whole fan."""
+    wanted = set(range(FAN_SIZE))
+    if (Path(d) / PROVENANCE).exists():
+        wanted = set(_fan_points(Path(d) / PROVENANCE)) or wanted
+    return wanted
+
+
+def sweep_rows(d: str | Path) -> tuple[list[dict], set[int]]:
+    """(rows of `runs.jsonl` at the sweep's fan points, those points); a run outside the
+    sweep's points (a log copied from elsewhere, a point no longer asked for) is left out."""
+    d = Path(d)
+    rows = read_runs(d / RUNS) if (d / RUNS).exists() else []
+    wanted = wanted_points(d)
+    return [r for r in rows if int(r["point"]) in wanted], wanted
+
+
 def table_status(d: str | Path, name: str | None = None) -> TableStatus:
     """The status of one sweep directory (which need not exist yet)."""
     d = Path(d)
     name = name or d.name
-    rows = read_runs(d / RUNS) if (d / RUNS).exists() else []
-    wanted = set(range(FAN_SIZE))
-    if (d / PROVENANCE).exists():
-        wanted = set(_fan_points(d / PROVENANCE)) or wanted
-    done = [r for r in rows if int(r["point"]) in wanted]  # a run outside the sweep's points completes nothing
+    done, wanted = sweep_rows(d)
     return TableStatus(name, len(done), len(wanted), sum(not r["success"] for r in done), best_row(done),
                        [_run_cpu_s(r) for r in done], lock_owner(d) is not None)
 

@@ -2,7 +2,8 @@
 median loss, how many points fold within 2 cm and within 0.5 mm of the best, the fan
 middle's loss and the rank correlation with the default table (shape1).
 
-Read from each scenario's `runs.jsonl` (current while a sweep runs). Losses in mm; (h, tilt)
+Read from each scenario's `runs.jsonl` (current while a sweep runs), at the fan points its sweep
+covers, as `status` counts them. Losses in mm; (h, tilt)
 in the fan's units (height ratio, deg). Spearman's rho over the fan points both tables
 completed.
 """
@@ -16,7 +17,8 @@ import numpy as np
 
 from .scenario import SCENARIOS, generation_order
 from .select import middle_of_fan
-from .sweep_dir import RUNS, best_row, read_runs
+from .status import sweep_rows
+from .sweep_dir import RUNS, best_row
 
 BEGIN = "<!-- table-summary (clothfold tables) -->"
 END = "<!-- /table-summary -->"
@@ -65,9 +67,9 @@ def landscape_summaries(root: str | Path) -> list[LandscapeSummary]:
     """Every scenario of `SCENARIOS` under `root` that has runs, in generation order."""
     out = []
     for name in generation_order(list(SCENARIOS)):
-        f = Path(root) / name / RUNS
-        if f.exists():
-            out.append(LandscapeSummary(name, read_runs(f)))
+        d = Path(root) / name
+        if (d / RUNS).exists():
+            out.append(LandscapeSummary(name, sweep_rows(d)[0]))  # the sweep's fan points, as `status` counts
     return out
 
 
