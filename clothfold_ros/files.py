@@ -1,7 +1,9 @@
-"""Whole-file writes: a file is written aside and renamed into place, so a reader never sees half of it."""
+"""Whole-file writes: a file is written aside and renamed into place, so a reader never sees half of it;
+and removal of an output that is a file or a directory (a bag is either)."""
 from __future__ import annotations
 
 import os
+import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -31,3 +33,13 @@ def _fsync(path: Path, flags: int) -> None:
         os.fsync(fd)
     finally:
         os.close(fd)
+
+
+def remove_path(path: str | Path, missing_ok: bool = False) -> None:
+    """Remove `path`, a directory tree or a file (FileNotFoundError when it is absent, unless
+    `missing_ok`)."""
+    path = Path(path)
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    else:
+        path.unlink(missing_ok=missing_ok)

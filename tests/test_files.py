@@ -41,3 +41,25 @@ def test_failure_while_writing_keeps_old_file_and_leaves_no_temp(tmp_path, exist
     else:
         assert not path.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == (["metadata.yaml"] if existing else [])
+
+
+def test_remove_path_takes_a_tree_a_file_or_a_link_itself(tmp_path):
+    from clothfold_ros.files import remove_path
+
+    tree = tmp_path / "bag"
+    (tree / "sub").mkdir(parents=True)
+    (tree / "sub" / "a.mcap").write_bytes(b"x")
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    (keep / "k").write_text("k")
+    link = tmp_path / "link"
+    link.symlink_to(keep, target_is_directory=True)
+    remove_path(tree)
+    remove_path(link)  # the link, not the directory it points to
+    f = tmp_path / "one.mcap"
+    f.write_bytes(b"x")
+    remove_path(f)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep"] and (keep / "k").exists()
+    with pytest.raises(FileNotFoundError):
+        remove_path(f)
+    remove_path(f, missing_ok=True)

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable
 
+from ..files import remove_path
 from .errors import BagError
 from .reader import BagMessage, BagReader, bag_files
 from .writer import BagWriter
@@ -77,7 +78,7 @@ def filter_bag(source: str | os.PathLike, output: str | os.PathLike, *, topics: 
                 raise BagError(f"{src}: no message selected ({report.read} read on {', '.join(wanted)}"
                                f"{' in the time window' if start_ns is not None or end_ns is not None else ''})")
             if out.exists():
-                _remove(out)
+                remove_path(out)
             os.replace(staging / out.name, out)
         finally:
             shutil.rmtree(staging, ignore_errors=True)
@@ -91,10 +92,3 @@ def _check_apart(src: Path, out: Path) -> None:
     if s == o or o in files or s in o.parents or o in s.parents or any(o in f.parents for f in files):
         raise BagError(f"{out}: the output must lie apart from the source bag {src} (not the bag, one of its "
                        "files, or a directory holding or inside it)")
-
-
-def _remove(path: Path) -> None:
-    if path.is_dir():
-        shutil.rmtree(path)
-    else:
-        path.unlink()

@@ -11,13 +11,13 @@ A recovery that fails leaves no output.
 from __future__ import annotations
 
 import os
-import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
+from ..files import remove_path
 from .errors import BagError
 from .qos import parse_qos
 from .reader import _DAMAGE
@@ -170,10 +170,7 @@ def _write(dst: Path, schemas: dict[int, Schema], channels: dict[int, Channel], 
         try:
             writer.close()
         finally:
-            if dst.is_dir():
-                shutil.rmtree(dst)
-            else:
-                dst.unlink(missing_ok=True)
+            remove_path(dst, missing_ok=True)
         raise
     writer.close()
 
