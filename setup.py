@@ -6,8 +6,11 @@ from glob import glob
 from setuptools import find_packages, setup
 
 PACKAGE = "clothfold_ros"
+HERE = os.path.dirname(os.path.abspath(__file__))
 # the node executables, from the one list (standard library only, so it loads without the package's dependencies)
-NODES = runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)), PACKAGE, "nodes", "backends.py"))["NODES"]
+NODES = runpy.run_path(os.path.join(HERE, PACKAGE, "nodes", "backends.py"))["NODES"]
+# the lookup-table files an install carries, from the same list the tests read
+RESOURCES = runpy.run_path(os.path.join(HERE, PACKAGE, "nodes", "resources.py"))
 
 setup(
     name=PACKAGE,
@@ -19,12 +22,8 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.csv")),
     ]
-    + [  # lookup tables, config/tables/<scenario>/: the tables, provenance, settings and run logs (the planner,
-        # `clothfold tables`, `regret`, `plot`'s landscapes); the sweeps' final meshes (about 9 MB a table) and the
-        # first coarse tables (config/tables_1k2) stay in the checkout
-        (f"share/{PACKAGE}/{d}", sorted(glob(f"{d}/*.csv") + glob(f"{d}/*.json") + glob(f"{d}/*.jsonl")))
-        for d in sorted(glob("config/tables/*/"))
-    ],
+    + RESOURCES["table_data_files"](),  # config/tables/<scenario>/ without the final meshes; config/tables_1k2
+    # (the first coarse tables, for comparison) stays in the checkout
     package_data={PACKAGE: ["py.typed"]},
     install_requires=["setuptools"],
     zip_safe=True,

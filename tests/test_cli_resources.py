@@ -40,11 +40,11 @@ def installed(tmp_path, monkeypatch, elsewhere):
     marker.parent.mkdir(parents=True)
     marker.write_text("")
     share_tables = prefix / "share" / resources.PACKAGE / "config" / "tables"
-    for name in [d.name for d in CHECKOUT_TABLES.iterdir() if (d / "table.csv").is_file()]:
-        (share_tables / name).mkdir(parents=True)  # what setup.py installs: the tables' CSV, JSON and JSONL files
-        for f in [*(CHECKOUT_TABLES / name).glob("*.csv"), *(CHECKOUT_TABLES / name).glob("*.json"),
-                  *(CHECKOUT_TABLES / name).glob("*.jsonl")]:
-            shutil.copy(f, share_tables / name)
+    checkout = CHECKOUT_TABLES.parents[1]
+    for dest, files in resources.table_data_files(checkout):  # what setup.py installs, from the same function
+        (prefix / dest).mkdir(parents=True)
+        for f in files:
+            shutil.copy(checkout / f, prefix / dest)
     monkeypatch.setattr(resources, "SOURCE_CHECKOUT", False)
     monkeypatch.setenv("AMENT_PREFIX_PATH", os.pathsep.join([str(prefix), os.environ.get("AMENT_PREFIX_PATH", "")]))
     return share_tables

@@ -87,6 +87,10 @@ def test_readme_install_commands_build_and_fold(install_run):
     assert not (share / "config" / "tables_1k2").exists()  # the first coarse tables stay in the checkout
     assert (share / "config" / "tables" / "shape1" / "runs.jsonl").is_file()  # `clothfold tables` reads the run logs
     assert not (share / "config" / "tables" / "shape1" / "finals.npz").exists()  # sweep data stay in the checkout
+    from clothfold_ros.nodes.resources import table_data_files  # the list the installed-tables fixture copies
+    wanted = {f"{dest}/{Path(f).name}" for dest, files in table_data_files(ROOT) for f in files}
+    got = {str(p.relative_to(share.parents[1])) for p in (share / "config" / "tables").rglob("*") if p.is_file()}
+    assert got == wanted, (got ^ wanted)
 
 
 def test_installed_resources_resolve_through_the_ament_index(install_run):

@@ -2,7 +2,8 @@
 
 From source the checkout holds config/, launch/ and package.xml; on an install they are in
 share/clothfold_ros, found through the ament index (AMENT_PREFIX_PATH). Used by the nodes
-(fold_planner_node's table_dir) and the commands (parameters file, bags/).
+(fold_planner_node's table_dir) and the commands (parameters file, bags/). Standard library
+only: setup.py loads it for `table_data_files`, what an install carries of the lookup tables.
 """
 from __future__ import annotations
 
@@ -12,6 +13,21 @@ from pathlib import Path
 PACKAGE = "clothfold_ros"
 ROOT = Path(__file__).resolve().parents[2]  # the checkout when run from source, else site-packages
 SOURCE_CHECKOUT = (ROOT / "package.xml").is_file() and (ROOT / "config").is_dir()
+TABLES = "config/tables"
+# what an install carries of each table: the table, provenance, settings and run logs (the planner,
+# `clothfold tables`, `regret`, `plot`'s landscapes); not the sweeps' final meshes (about 9 MB a table)
+TABLE_FILE_PATTERNS = ("*.csv", "*.json", "*.jsonl")
+
+
+def table_data_files(checkout: str | Path = ".") -> list[tuple[str, list[str]]]:
+    """setup.py's data_files for the lookup tables: (share/clothfold_ros/config/tables/<scenario>,
+    its files as paths relative to `checkout`), one entry per scenario directory, sorted."""
+    base = Path(checkout)
+    out = []
+    for d in sorted(p for p in (base / TABLES).glob("*") if p.is_dir()):
+        files = sorted(str(f.relative_to(base)) for pattern in TABLE_FILE_PATTERNS for f in d.glob(pattern))
+        out.append((f"share/{PACKAGE}/{TABLES}/{d.name}", files))
+    return out
 
 
 def share_dir() -> Path:
