@@ -13,8 +13,9 @@ Arguments:
                 true with a simulated backend (it publishes /clock), false with backend:=none
                 (a real driver publishes no /clock)
   lookahead     trajectory_node.lookahead (s): how far ahead of the clock targets are
-                streamed; default 0.2 (>= the simulated backends' dt); 0 for a driver that
-                executes each target on receipt
+                streamed; given, it overrides the parameters file; default: the parameters
+                file's (config/clothfold.yaml: 0.2, >= the simulated backends' dt); 0 for a
+                driver that executes each target on receipt
   params_file   parameters YAML (default: share/clothfold_ros/config/clothfold.yaml)
 """
 import os
@@ -51,22 +52,29 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument("use_sim_time",
                               default_value=_by_backend(backend, {n: str(b.clock).lower() for n, b in BACKENDS.items()}),
                               description="pipeline nodes on /clock (default: true where the backend publishes it)"),
-        DeclareLaunchArgument("lookahead", default_value="0.2",
-                              description="trajectory_node.lookahead (s); 0 for a driver executing on receipt"),
+        DeclareLaunchArgument("lookahead", default_value="",
+                              description="trajectory_node.lookahead (s), overriding the parameters file's; "
+                                          "0 for a driver executing on receipt (default: the file's)"),
         DeclareLaunchArgument("params_file", default_value=default_params, description="parameters YAML"),
     ]
     for name, b in BACKENDS.items():
         if b.node:
             actions.append(Node(package=PACKAGE, executable=b.node, name=b.node, parameters=[params], output="screen",
                                 condition=_if_backend(backend, name)))
-    extra = {"trajectory_node": [{"lookahead": LaunchConfiguration("lookahead")}]}
+    lookahead = LaunchConfiguration("lookahead")
     for node in PIPELINE:
         if node == "keypoint_node":  # one per backend: its keypoint source, where it needs one
             for name, b in BACKENDS.items():
                 source = [{"source": b.keypoint_source}] if b.keypoint_source else []
                 actions.append(Node(package=PACKAGE, executable=node, name=node, parameters=[params, sim_time, *source],
                                     output="screen", condition=_if_backend(backend, name)))
-            continue
-        actions.append(Node(package=PACKAGE, executable=node, name=node, parameters=[params, sim_time, *extra.get(node, [])],
-                            output="screen"))
+        elif node == "trajectory_node":  # lookahead only when given: else the parameters file's value stands
+            for given in (True, False):
+                extra = [{"lookahead": lookahead}] if given else []
+                actions.append(Node(package=PACKAGE, executable=node, name=node, parameters=[params, sim_time, *extra],
+                                    output="screen",
+                                    condition=IfCondition(PythonExpression(["'", lookahead, f"' {'!=' if given else '=='} ''"]))))
+        else:
+            actions.append(Node(package=PACKAGE, executable=node, name=node, parameters=[params, sim_time],
+                                output="screen"))
     return LaunchDescription(actions)

@@ -78,7 +78,8 @@ def _launch_file_nodes(monkeypatch, backend: str, **given) -> dict[str, list]:
 @pytest.mark.parametrize("backend", sorted(BACKENDS))
 def test_launch_file_starts_what_the_launcher_starts(monkeypatch, backend):
     """The launch file and `clothfold launch` read the same registry: same nodes, keypoint
-    source and use_sim_time for every backend."""
+    source and use_sim_time for every backend, and neither overrides the parameters file's
+    lookahead unless it is given."""
     started = _launch_file_nodes(monkeypatch, backend, params_file="p.yaml")
     cmds = dict(pipeline_nodes(backend, params_file="p.yaml"))
     assert set(started) == set(cmds)
@@ -86,10 +87,13 @@ def test_launch_file_starts_what_the_launcher_starts(monkeypatch, backend):
         assert ps[0] == "p.yaml" and "--params-file" in cmds[node]
         merged = {k: v for p in ps[1:] for k, v in p.items()}
         cli = dict(a.split(":=") for a in cmds[node] if ":=" in a)
-        assert {k: str(v).lower() for k, v in merged.items() if k != "lookahead"} == cli, node
+        assert {k: str(v).lower() for k, v in merged.items()} == cli, node
+    assert "lookahead" not in cli  # the file's value stands
     assert (ROOT / "config" / "clothfold.yaml").is_file()
     lookahead = _launch_file_nodes(monkeypatch, backend, lookahead="0.0")["trajectory_node"][-1]["lookahead"]
-    assert lookahead == "0.0"
+    cli = dict(a.split(":=") for a in dict(pipeline_nodes(backend, params_file="p.yaml", lookahead=0.0))
+               ["trajectory_node"] if ":=" in a)
+    assert lookahead == "0.0" and float(cli["lookahead"]) == 0.0
 
 
 def test_config_parameters_are_declared():
