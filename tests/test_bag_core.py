@@ -247,6 +247,11 @@ def test_writer_rejects_bad_input(tmp_path):
         BagWriter(path)
     with pytest.raises(BagError, match="closed"):
         w.write("/a", b"", T0)
+    with BagWriter(path, overwrite=True) as w2:  # what the recorder (and `launch --record --force`) does
+        w2.add_topic("/b", "std_msgs/msg/String")
+        w2.write("/b", b"\x00\x01\x00\x00\x01\x00\x00\x00\x00", T0)
+    with BagReader(path) as b:
+        assert list(b.topics) == ["/b"] and b.message_count == 1  # the old bag replaced, not appended to
 
 
 @pytest.mark.parametrize("bad", [
@@ -336,9 +341,11 @@ def test_filter_keeps_topics_window_and_bytes_and_rosbags_reads_it(tmp_path):
 
     # a predicate and an exclude regex; a bag directory as output
     odd = filter_bag(src, tmp_path / "odd", exclude="^/gripper_", keep=lambda m: m.log_time_ns % 20_000_000 == 10_000_000)
-    with BagReader(tmp_path / "odd") as b:
-        assert all(not m.topic.startswith("/gripper_") for m in b.messages())
-        assert b.message_count == sum(odd.kept.values()) > 0
+    with BagReader(tmp_path / "odd") as b, BagReader(src) as a:
+        kept = [(m.topic, m.log_time_ns) for m in b.messages()]
+        rest = [(m.topic, m.log_time_ns) for m in a.messages() if not m.topic.startswith("/gripper_")]
+        assert kept == [k for k in rest if k[1] % 20_000_000 == 10_000_000]  # the predicate's selection, exactly
+        assert 0 < len(kept) < len(rest) == odd.read and b.message_count == sum(odd.kept.values())
 
     # refusals: unknown topic, bad regex, empty window, existing output, the source itself; none leaves a file
     for kwargs, match in (({"topics": ["/nope"]}, "no topic /nope"), ({"exclude": "("}, "bad exclude regex"),

@@ -351,12 +351,13 @@ def test_messages_still_queued_at_shutdown_are_written(tmp_path, monkeypatch, ca
         rclpy.try_shutdown(context=ctx)
 
 
-def test_a_middleware_without_the_message_lost_event_still_records(tmp_path, monkeypatch, capsys):
+def test_a_middleware_without_the_message_lost_event_still_records(tmp_path, monkeypatch):
     """Where the middleware has no message-lost event, rclpy raises UnsupportedEventTypeError for
-    the handler: the recorder subscribes without it, says once that losses are not counted, and
-    records (the warning is said once: `_lost_unsupported`)."""
+    the handler: the recorder subscribes without it, says once (for two topics) that losses are
+    not counted, and records both."""
     import rclpy
     from rclpy.event_handler import UnsupportedEventTypeError
+    from rclpy.impl.rcutils_logger import RcutilsLogger
     from std_msgs.msg import String
 
     from clothfold_ros.bag import BagReader
@@ -374,22 +375,29 @@ def test_a_middleware_without_the_message_lost_event_still_records(tmp_path, mon
         return create(self, *a, **k)
 
     monkeypatch.setattr(rclpy.node.Node, "create_subscription", no_lost_event)
+    said: list[str] = []
+    warning = RcutilsLogger.warning
+    monkeypatch.setattr(RcutilsLogger, "warning", lambda self, msg, **k: (said.append(msg), warning(self, msg, **k))[1])
     out = tmp_path / "nolost.mcap"
+    topics = ["/chatter", "/chatter2"]
     try:
         talker = rclpy.create_node("talker", context=ctx)
-        pub = talker.create_publisher(String, "/chatter", 10)
-        node = RecorderNode(str(out), topics=["/chatter"], tf=False)
+        pubs = [talker.create_publisher(String, t, 10) for t in topics]
+        node = RecorderNode(str(out), topics=topics, tf=False)
         deadline = time.monotonic() + 10
-        while not (node.subs and pub.get_subscription_count()) and time.monotonic() < deadline:
+        while not (len(node.subs) == 2 and all(p.get_subscription_count() for p in pubs)) \
+                and time.monotonic() < deadline:
             time.sleep(0.05)
             node.discover()
-        pub.publish(String(data="kept"))
-        pub.wait_for_all_acked()
+        for p in pubs:
+            p.publish(String(data="kept"))
+            p.wait_for_all_acked()
         rclpy.try_shutdown(context=ctx)
         node.destroy_node()
         with BagReader(out) as bag:
-            assert bag.topics["/chatter"].message_count == 1
+            assert [bag.topics[t].message_count for t in topics] == [1, 1]
         talker.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
-    assert node.subs and node._lost_unsupported
+    assert sorted(node.subs) == topics and node._lost_unsupported
+    assert sum("losses are not counted" in m for m in said) == 1, said

@@ -62,8 +62,11 @@ def test_bad_arguments_are_one_line_and_exit_2(tmp_path, monkeypatch, capsys, st
     assert not started
 
 
-def test_record_force_overwrites_an_existing_bag(tmp_path, monkeypatch, started):
+def test_record_force_starts_the_recorder_on_an_existing_bag(tmp_path, monkeypatch, started):
+    """Without --force the launch is refused (above); with it the recorder is started on that
+    path (the recorder opens its bag with overwrite: tests/test_bag_core.py)."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "old.mcap").write_bytes(b"a recording to replace")
     assert main(["launch", "--backend", "kinematic", "--record", "old.mcap", "--force"]) == 0
-    assert "recorder_node" in {name for name, _, _ in started}
+    cmd, cwd = {name: (cmd, cwd) for name, cmd, cwd in started}["recorder_node"]
+    assert (cwd / _arg(cmd, "--output")).resolve() == (tmp_path / "old.mcap").resolve()

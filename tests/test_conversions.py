@@ -63,15 +63,21 @@ def test_keypoints_round_trip_and_errors(shirt):
 def test_fold_spec_round_trip_and_errors(shirt):
     for name in ("left_sleeve", "middle"):
         spec = fold_spec(name, shirt.keypoints())
-        plan = rc.PlannedFold(spec, 0.6, 25.0, 4.0, 0.2, 3, 1234)
+        done = ("left_sleeve", "right_sleeve") if name == "middle" else ()
+        plan = rc.PlannedFold(spec, 0.6, 25.0, 4.0, 0.2, 3, 1234, folds_done=done)
         back = rc.fold_spec_from_msg(rc.fold_spec_to_msg(plan))
         assert (back.height_ratio, back.tilt_deg, back.duration, back.settle_time, back.stage, back.stamp_ns) == \
             (0.6, 25.0, 4.0, 0.2, 3, 1234)
         assert back.spec.name == name and back.spec.n_grippers == spec.n_grippers
+        assert back.folds_done == done and back.spec.tilt_signs == spec.tilt_signs
+        assert back.spec.layer_offset_factor == spec.layer_offset_factor
         np.testing.assert_allclose(back.spec.line_point, spec.line_point)
+        np.testing.assert_allclose(back.spec.line_direction, spec.line_direction)
         np.testing.assert_allclose(back.spec.normal, spec.normal)
-        for a, b in zip(back.spec.end_poses, spec.end_poses):
-            np.testing.assert_allclose(a.position, b.position)
+        assert len(back.spec.start_poses) == len(spec.start_poses) == len(back.spec.end_poses)
+        for a, b in zip(back.spec.start_poses + back.spec.end_poses, spec.start_poses + spec.end_poses):
+            np.testing.assert_allclose(a.position, b.position)  # the grasps and where they are put down
+            np.testing.assert_allclose(abs(a.quaternion @ b.quaternion), 1.0, atol=1e-12)  # the same rotation
     msg = rc.fold_spec_to_msg(rc.PlannedFold(fold_spec("left_sleeve", shirt.keypoints()), 0.6, 25.0, 4.0, 0.2))
     msg.duration = math.nan
     with pytest.raises(ValueError, match="duration"):

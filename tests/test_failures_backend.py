@@ -25,10 +25,13 @@ DT_NS = 40_000_000
 
 @pytest.fixture(scope="module")
 def rig():
-    import os
+    with pytest.MonkeyPatch.context() as mp:  # this module's domain, restored for the modules after it
+        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        mp.setenv("ROS_DOMAIN_ID", str(DOMAIN))
+        yield from _rig()
 
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ["ROS_DOMAIN_ID"] = str(DOMAIN)
+
+def _rig():
     import rclpy
     from clothfold_msgs.msg import FoldResult, FoldSpec, GripperCommand
     from geometry_msgs.msg import PoseStamped

@@ -435,7 +435,7 @@ def test_refresh_features_rewrites_a_stage_directorys_features_only(tmp_path: Pa
         refresh_features(tmp_path / "shape1")
 
 
-def test_a_sweep_runs_nicer_than_the_nodes_and_tests() -> None:
+def test_a_sweep_runs_nicer_than_the_nodes_and_tests(tmp_path) -> None:
     """`clothfold sweep --nice` raises the process's niceness (its workers inherit it), never
     lowers it, and refuses values outside 0..19 (checked in a child: os.nice is per process)."""
     import os
@@ -452,5 +452,5 @@ def test_a_sweep_runs_nicer_than_the_nodes_and_tests() -> None:
     from clothfold_ros.cli import main
 
     with pytest.raises(SystemExit) as exit_:  # refused when parsed, whatever the mode
-        main(["sweep", "T1", "--nice", "25", "--table-only"])
+        main(["sweep", "T1", "--nice", "25", "--table-only", "--out", str(tmp_path)])  # never the shipped tables
     assert exit_.value.code == 2

@@ -70,7 +70,6 @@ def test_kinematic_pipeline_and_bad_inputs(pipeline):
 
     # goals straight to trajectory_node: too fast, outside the workspace, NaN, below the table
     good = client.plan("right_sleeve", execute=False).spec
-    fast = fold_spec_from_msg(good)
     fast_msg = type(good)(**{k: getattr(good, k) for k in good.get_fields_and_field_types()})
     fast_msg.duration = 0.6
     assert not client.send_goal(fast_msg)
@@ -85,7 +84,6 @@ def test_kinematic_pipeline_and_bad_inputs(pipeline):
     assert not client.send_goal(low)
     for words in ("exceeds the limit", "leaves the workspace", "not finite", "below the table top"):
         _wait_log(launcher, "trajectory_node", words)
-    assert fast.spec.n_grippers == 1
 
     # goals outside the search space / the sane ranges are refused with the reason
     def copy(**changes):
