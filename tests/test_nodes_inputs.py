@@ -121,3 +121,35 @@ def test_parameter_changes_are_checked(env):
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+def test_whole_numbers_for_double_parameters_are_taken(env):
+    """`-p lookahead:=0` (what docs/robot-interface.md advises for a driver) and an all-integer
+    `table_from_camera` reach rclpy as INTEGER / INTEGER_ARRAY: declared as doubles they stopped
+    the node (InvalidParameterTypeException). They are taken as the doubles they name; a later
+    `ros2 param set` with an integer is refused with rclpy's reason, the node keeps its value."""
+    env.setenv("ROS_DOMAIN_ID", str(DOMAIN_SET))
+    import rclpy
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    from clothfold_ros.nodes import keypoint_node, params, trajectory_node
+
+    ctx = rclpy.Context()
+    rclpy.init(args=[], context=ctx)
+    try:
+        args = ["--ros-args", "-p", "lookahead:=0", "-p", "rate:=50", "-p", "workspace_min:=[-2, -2, 0]"]
+        node = Node("whole_numbers", context=ctx, cli_args=args)
+        params.declare(node, trajectory_node.PARAMS, trajectory_node._param_check)
+        assert (params.value(node, "lookahead"), params.value(node, "rate")) == (0.0, 50.0)
+        assert params.value(node, "workspace_min") == [-2.0, -2.0, 0.0]
+        assert all(isinstance(v, float) for v in params.value(node, "workspace_min"))
+        res = node.set_parameters([Parameter("lookahead", Parameter.Type.INTEGER, 1)])[0]
+        assert not res.successful and "DOUBLE" in res.reason and params.value(node, "lookahead") == 0.0
+        node.destroy_node()
+        cam = Node("whole_numbers_cam", context=ctx, cli_args=["--ros-args", "-p", "table_from_camera:=[0,0,1,1,0,0,0]"])
+        params.declare(cam, keypoint_node.PARAMS)
+        assert params.value(cam, "table_from_camera") == [0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0]
+        cam.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)

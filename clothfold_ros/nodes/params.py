@@ -4,7 +4,8 @@ Each node lists its parameters as `Param`s; `declare()` declares them with a
 ParameterDescriptor (FloatingPointRange / IntegerRange, read-only flag, description) and
 installs a set-parameters callback that refuses bad values with a clear reason (range,
 choices, finiteness, array length, cross checks). Values from a `--params-file` go through
-the same checks at start-up: a bad file stops the node with the reason.
+the same checks at start-up: a bad file stops the node with the reason. A whole number given
+at start-up for a double parameter (`lookahead:=0`) is taken as that double.
 """
 from __future__ import annotations
 
@@ -121,6 +122,7 @@ def declare(node: Node, params: Sequence[Param], cross_check: CrossCheck | None 
         return SetParametersResult(successful=True)
 
     node.add_on_set_parameters_callback(on_set)
+    _integers_as_doubles(node, params)
     node.declare_parameters("", [(p.name, p.default, p.descriptor()) for p in params])
     declaring[0] = False
     if cross_check:
@@ -133,6 +135,25 @@ def declare(node: Node, params: Sequence[Param], cross_check: CrossCheck | None 
         node.get_logger().warning(f"unknown parameter {name!r} ignored (misspelt?); {node.get_name()} declares: "
                                   f"{', '.join(sorted(n for n in by_name))}")
     return unknown
+
+
+def _integers_as_doubles(node: Node, params: Sequence[Param]) -> None:
+    """Take a whole number given for a double parameter (`-p lookahead:=0`, `lookahead: 0` in a
+    params file, `[0, 0, 1, 1, 0, 0, 0]` for a double array) as that double: rclpy would refuse
+    it as an INTEGER and stop the node. Mixed lists (`[0, 0.5]`) are refused by rcl's parser
+    before the node starts; write `0.0` there."""
+    overrides = getattr(node, "_parameter_overrides", None)
+    if not overrides:
+        return
+    for p in params:
+        given = overrides.get(p.name)
+        if given is None or isinstance(p.default, bool):
+            continue
+        if isinstance(p.default, float) and given.type_ == Parameter.Type.INTEGER:
+            overrides[p.name] = Parameter(p.name, Parameter.Type.DOUBLE, float(given.value))
+        elif isinstance(p.default, list) and p.default and all(isinstance(v, float) for v in p.default) \
+                and given.type_ == Parameter.Type.INTEGER_ARRAY:
+            overrides[p.name] = Parameter(p.name, Parameter.Type.DOUBLE_ARRAY, [float(v) for v in given.value])
 
 
 def unknown_overrides(node: Node) -> list[str]:
