@@ -32,7 +32,8 @@ def test_planner_without_keypoints_bad_state_and_missing_table(env, tmp_path):
 
     missing = tmp_path / "no_tables"
     with Launcher(domain_id=DOMAIN_TABLE, echo=False) as launcher:
-        kp_node = launcher.start("keypoint_node", node_command("keypoint_node", params={"use_sim_time": False}))
+        kp_node = launcher.start("keypoint_node", node_command("keypoint_node", params={"source": "cloth_state",
+                                                                                      "use_sim_time": False}))
         planner = launcher.start("fold_planner_node", node_command(
             "fold_planner_node", params={"selection": "table", "table_dir": str(missing)}))
         launcher.wait_for(planner, "ready", 60)

@@ -113,6 +113,9 @@ def test_config_parameters_are_declared():
         for p in ps:
             if p.name in values:
                 assert p.check(values[p.name]) is None, (node, p.name)
+                # the file states the code's defaults: a node started without it (`ros2 run` with no
+                # --params-file) behaves as documented
+                assert values[p.name] == p.default, (node, p.name, values[p.name], p.default)
 
 
 def test_pipeline_commands():

@@ -41,7 +41,7 @@ from .params import Param
 
 PARAMS = [
     params.SHAPE,
-    Param("max_area", 1e-3, "mesh max triangle area (m^2); 1e-3 ~ 600 triangles, SPEC uses 5e-5",
+    Param("max_area", 5e-4, "mesh max triangle area (m^2); 5e-4 ~ 1.2K triangles, the study's is 5e-5",
           range=(1e-5, 1e-2), read_only=True),
     params.MATERIAL,
     Param("friction", DEFAULT_FRICTION, "friction coefficient of every contact (-)", range=(0.0, 2.0), read_only=True),

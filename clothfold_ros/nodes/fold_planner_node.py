@@ -39,7 +39,7 @@ from .params import Param
 from .waiting import wait_future
 
 PARAMS = [
-    Param("selection", "parameter", "how (height ratio, tilt) are chosen", choices=("parameter", "table")),
+    Param("selection", "table", "how (height ratio, tilt) are chosen", choices=("parameter", "table")),
     Param("height_ratio", 0.5, "Bezier height ratio (-) when selection = parameter (the search space)",
           range=HEIGHT_RATIO_RANGE),
     Param("tilt_deg", 30.0, "Bezier tilt (deg) when selection = parameter (the search space)", range=TILT_RANGE_DEG),

@@ -60,10 +60,10 @@ STALE_AFTER = 30.0  # s past a fold's end without its result: the fold is no lon
 POINTS_QOS = {"latched": common.LATCHED, "sensor_data": qos_profile_sensor_data}
 
 PARAMS = [
-    Param("source", "cloth_state", "where keypoints come from: a point cloud, the cloth state topic or the flat "
+    Param("source", "points", "where keypoints come from: a point cloud, the cloth state topic or the flat "
           "shirt model", choices=("points", "cloth_state", "model"), read_only=True),
     params.SHAPE,
-    Param("max_area", 1e-3, "mesh max triangle area (m^2) of the model shirt (source = model; cloth_state: the sim's)",
+    Param("max_area", 5e-4, "mesh max triangle area (m^2) of the model shirt (source = model; cloth_state: the sim's)",
           range=(1e-5, 1e-2), read_only=True),
     Param("model_period", 1.0, "republish period of the model keypoints (s)", range=(0.05, 60.0), read_only=True),
     Param("points_topic", "/cloth/points", "sensor_msgs/PointCloud2 topic (source = points)", read_only=True),
