@@ -109,6 +109,12 @@ def test_points_good_bad_and_folded_clouds(env):
             launcher.wait_for(node, "exceeds max_residual", 5)
             feed.cloud(good, 6 * S, frame="camera")
             launcher.wait_for(node, "points_frame", 20)
+            for k in range(20):  # a camera in the wrong frame at full rate: every cloud counted, few lines
+                feed.cloud(good, 7 * S + k, frame="camera")
+                time.sleep(0.02)
+            launcher.wait_for(node, r"errors not logged individually: \d+ x \[cloud: .*points_frame"
+                                    r"|points_frame.*\(#\d+ of this kind; \d+ more not logged", 15)
+            assert sum("cloud frame is" in line for line in node.lines) <= 4, node.lines[-10:]
             deadline = time.monotonic() + 20
             while not any(m.ns == "rejected" for m in feed.markers) and time.monotonic() < deadline:
                 time.sleep(0.1)

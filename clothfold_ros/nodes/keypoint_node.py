@@ -19,7 +19,10 @@ subscription's QoS: "latched" for the sim's camera, "sensor_data" (best effort, 
 camera driver's sensor-data publisher, which a latched subscription never receives. A bad cloud (empty,
 NaN, no cloth, two blobs, no convergence) is logged with the reason and skipped; a fit
 whose residual exceeds `max_residual` is logged as such and its outline published in
-red (namespace "rejected"), not its keypoints. The last good keypoints stay published.
+red (namespace "rejected"), not its keypoints. The last good keypoints stay published. Every
+skipped input is counted; repeats of one kind are logged at most once a second with their
+count, and what a burst left unlogged is reported within 5 s (a camera in the wrong frame at
+30 Hz costs a line a second, not 30).
 
 source = "cloth_state": subscribes /cloth/state and publishes the visible keypoints of
 the current mesh (material keypoint vertices while flat; vertex id -1 for keypoints that
@@ -53,6 +56,7 @@ from visualization_msgs.msg import Marker
 from ..garment import KEYPOINT_NAMES
 from . import conversions as rc
 from . import common, params
+from .errorlog import ErrorLog
 from .params import Param
 
 OUTLINE_TOPIC = "/keypoints/outline"
@@ -134,7 +138,8 @@ class KeypointNode(Node):
         params.declare(self, PARAMS, _heights_ordered)
         self.pub = self.create_publisher(Keypoints, common.KEYPOINTS, common.LATCHED)
         self.count = 0
-        self.errors = 0
+        self.errors = ErrorLog(interval=1.0)  # bad inputs: each counted, a flood logged once a second a kind
+        self.create_timer(5.0, self._report_unlogged, clock=Clock(clock_type=ClockType.STEADY_TIME))  # wall s
         self.folds: list = []  # core FoldSpecs of the folds done, in order
         self.active = None  # the fold being executed (PlannedFold), None when the cloth rests
         self.given_up = None  # the last fold taken as over without its result (PlannedFold)
@@ -295,6 +300,19 @@ class KeypointNode(Node):
     def fold_names(self, extra=None) -> list[str]:
         return [s.name for s in self.folds] + ([extra.name] if extra is not None else [])
 
+    # -- bad input ------------------------------------------------------------------------------------
+    def input_error(self, kind: str, text: str) -> None:
+        """Log a skipped input: every one counted, the first of a kind logged at once, repeats at
+        most once a second with the count (a camera in the wrong frame at 30 Hz is one line a second)."""
+        line = self.errors.record(kind, text)
+        if line:
+            self.get_logger().error(line)
+
+    def _report_unlogged(self) -> None:
+        line = self.errors.flush()  # what a flood left unlogged since its last line, with the counts
+        if line:
+            self.get_logger().error(line)
+
     # -- source = points ------------------------------------------------------------------------------
     def on_points(self, msg: PointCloud2) -> None:
         from ..perception.estimator import PerceptionError, PoorFitError, flat_area
@@ -303,8 +321,7 @@ class KeypointNode(Node):
         try:
             stamp = rc.stamp_ns(msg.header, "cloud")
         except ValueError as err:
-            self.errors += 1
-            self.get_logger().error(f"bad cloud skipped ({self.errors} so far): {err}; keeping the last good keypoints")
+            self.input_error("cloud", f"bad cloud skipped: {err}; keeping the last good keypoints")
             return
         if self.folding(stamp):
             self.skipped = (self.on_points, msg)  # a fold is moving the cloth: handled after its result
@@ -319,15 +336,12 @@ class KeypointNode(Node):
                                    failed=self.failed.name if self.failed is not None else None,
                                    flat_shirt_area=self.flat_area, config=self.config)
         except PoorFitError as err:
-            self.errors += 1
-            self.get_logger().error(f"keypoint fit rejected ({self.errors} so far): {err}; keeping the last good "
-                                    "keypoints")
+            self.input_error("fit", f"keypoint fit rejected: {err}; keeping the last good keypoints")
             self.outline_pub.publish(self.outline_marker(err.estimate.segments, stamp, rejected=True))
             return
         except (PerceptionError, ValueError) as err:
-            self.errors += 1
-            self.get_logger().error(f"bad cloud skipped ({self.errors} so far): {type(err).__name__}: {err}; "
-                                    "keeping the last good keypoints")
+            self.input_error("cloud", f"bad cloud skipped: {type(err).__name__}: {err}; keeping the last good "
+                             "keypoints")
             return
         for warning in state.warnings:
             self.get_logger().warn(warning)
@@ -398,8 +412,7 @@ class KeypointNode(Node):
             if not all(np.all(np.isfinite(p)) for p in kp.values()):
                 raise ValueError("keypoints are not finite")
         except ValueError as err:
-            self.errors += 1
-            self.get_logger().error(f"bad cloth state skipped ({self.errors} so far): {err}")
+            self.input_error("state", f"bad cloth state skipped: {err}")
             return
         self.published_ns = state.stamp_ns
         self.pub.publish(rc.keypoints_to_msg(kp, state.stamp_ns, ids, folds=self.fold_names()))
