@@ -16,6 +16,8 @@ Arguments:
                 streamed; given, it overrides the parameters file; default: the parameters
                 file's (config/clothfold.yaml: 0.2, >= the simulated backends' dt); 0 for a
                 driver that executes each target on receipt
+  perception    true | false (default true): false starts no keypoint_node, for your own
+                perception node publishing /keypoints
   params_file   parameters YAML (default: share/clothfold_ros/config/clothfold.yaml)
 """
 import os
@@ -37,8 +39,10 @@ def _by_backend(backend: LaunchConfiguration, values: dict[str, str]) -> PythonE
     return PythonExpression([repr(values), "['", backend, "']"])
 
 
-def _if_backend(backend: LaunchConfiguration, name: str) -> IfCondition:
-    return IfCondition(PythonExpression(["'", backend, f"' == '{name}'"]))
+def _if_backend(backend: LaunchConfiguration, name: str, also: LaunchConfiguration | None = None) -> IfCondition:
+    """True when the backend is `name` (and, given `also`, that true | false argument is true)."""
+    extra = [] if also is None else [" and '", also, "' == 'true'"]
+    return IfCondition(PythonExpression(["'", backend, f"' == '{name}'", *extra]))
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -55,6 +59,8 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument("lookahead", default_value="",
                               description="trajectory_node.lookahead (s), overriding the parameters file's; "
                                           "0 for a driver executing on receipt (default: the file's)"),
+        DeclareLaunchArgument("perception", default_value="true", choices=["true", "false"],
+                              description="start keypoint_node (false: your own perception node publishes /keypoints)"),
         DeclareLaunchArgument("params_file", default_value=default_params, description="parameters YAML"),
     ]
     for name, b in BACKENDS.items():
@@ -62,12 +68,13 @@ def generate_launch_description() -> LaunchDescription:
             actions.append(Node(package=PACKAGE, executable=b.node, name=b.node, parameters=[params], output="screen",
                                 condition=_if_backend(backend, name)))
     lookahead = LaunchConfiguration("lookahead")
+    perception = LaunchConfiguration("perception")
     for node in PIPELINE:
         if node == "keypoint_node":  # one per backend: its keypoint source, where it needs one
             for name, b in BACKENDS.items():
                 source = [{"source": b.keypoint_source}] if b.keypoint_source else []
                 actions.append(Node(package=PACKAGE, executable=node, name=node, parameters=[params, sim_time, *source],
-                                    output="screen", condition=_if_backend(backend, name)))
+                                    output="screen", condition=_if_backend(backend, name, perception)))
         elif node == "trajectory_node":  # lookahead only when given: else the parameters file's value stands
             for given in (True, False):
                 extra = [{"lookahead": lookahead}] if given else []

@@ -70,3 +70,9 @@ def test_record_force_starts_the_recorder_on_an_existing_bag(tmp_path, monkeypat
     assert main(["launch", "--backend", "kinematic", "--record", "old.mcap", "--force"]) == 0
     cmd, cwd = {name: (cmd, cwd) for name, cmd, cwd in started}["recorder_node"]
     assert (cwd / _arg(cmd, "--output")).resolve() == (tmp_path / "old.mcap").resolve()
+
+
+def test_no_perception_leaves_keypoint_node_out(tmp_path, monkeypatch, started):
+    monkeypatch.chdir(tmp_path)
+    assert main(["launch", "--backend", "none", "--no-perception"]) == 0
+    assert {name for name, _, _ in started} == {"fold_planner_node", "trajectory_node"}

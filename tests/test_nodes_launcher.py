@@ -94,6 +94,9 @@ def test_launch_file_starts_what_the_launcher_starts(monkeypatch, backend):
     cli = dict(a.split(":=") for a in dict(pipeline_nodes(backend, params_file="p.yaml", lookahead=0.0))
                ["trajectory_node"] if ":=" in a)
     assert lookahead == "0.0" and float(cli["lookahead"]) == 0.0
+    # perception:=false / --no-perception: no keypoint_node (your own perception node), the rest unchanged
+    mine = _launch_file_nodes(monkeypatch, backend, perception="false")
+    assert set(mine) == set(dict(pipeline_nodes(backend, perception=False))) == set(started) - {"keypoint_node"}
 
 
 def test_config_parameters_are_declared():

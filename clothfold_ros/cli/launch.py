@@ -29,6 +29,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--params-file", type=Path, default=DEFAULT_PARAMS, help="ROS 2 parameters YAML")
     p.add_argument("-p", "--param", action="append", default=[], metavar="NODE:NAME:=VALUE",
                    help="override one node parameter (repeatable)")
+    p.add_argument("--no-perception", dest="perception", action="store_false",
+                   help="do not start keypoint_node: your own perception node publishes /keypoints")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID for all nodes")
     p.add_argument("--record", type=Path, default=None, metavar="BAG", help="also record every topic to BAG")
     p.add_argument("--force", action="store_true", help="with --record: overwrite an existing BAG")
@@ -55,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"clothfold launch: {err}", file=sys.stderr)
         return 2
     try:
-        launcher.start_pipeline(args.backend, params_file, overrides)
+        launcher.start_pipeline(args.backend, params_file, overrides, perception=args.perception)
         if record is not None:
             launcher.start("recorder_node", node_command("recorder_node", args=["--output", str(record)]))
     except BaseException:

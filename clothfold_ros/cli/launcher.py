@@ -52,7 +52,7 @@ def node_command(node: str, params_file: str | Path | None = None, params: dict 
 
 def pipeline_nodes(backend: str = "sim", params_file: str | Path | None = DEFAULT_PARAMS,
                    overrides: dict[str, dict] | None = None, use_sim_time: bool | None = None,
-                   lookahead: float | None = None) -> list[tuple[str, list[str]]]:
+                   lookahead: float | None = None, perception: bool = True) -> list[tuple[str, list[str]]]:
     """(name, command) of every pipeline node for a backend (nodes/backends.BACKENDS).
 
     overrides: node name -> {parameter: value}. A backend without cloth (kinematic) sets
@@ -60,7 +60,8 @@ def pipeline_nodes(backend: str = "sim", params_file: str | Path | None = DEFAUL
     no backend (a real driver runs instead); a backend that publishes no /clock runs the
     pipeline nodes on wall time (use_sim_time false). use_sim_time / lookahead (s) given
     here set those parameters of the pipeline nodes / trajectory_node (what the launch file's
-    arguments of the same names do).
+    arguments of the same names do). perception False leaves keypoint_node out: your own
+    perception node publishes /keypoints (docs/robot-interface.md).
     """
     b = get_backend(backend)
     overrides = {k: dict(v) for k, v in (overrides or {}).items()}
@@ -72,7 +73,7 @@ def pipeline_nodes(backend: str = "sim", params_file: str | Path | None = DEFAUL
         overrides.setdefault(n, {}).setdefault("use_sim_time", bool(use_sim_time))
     if lookahead is not None:
         overrides.setdefault("trajectory_node", {})["lookahead"] = float(lookahead)
-    names = [n for n in (b.node, *PIPELINE) if n]
+    names = [n for n in (b.node, *PIPELINE) if n and (perception or n != "keypoint_node")]
     unknown = sorted(set(overrides) - set(NODES))
     if unknown:  # a misspelt node name would otherwise drop its parameters silently (another backend's node:
         # its parameters simply wait, as a shared parameter file's do)
@@ -131,8 +132,9 @@ class Launcher:
 
     def start_pipeline(self, backend: str = "sim", params_file: str | Path | None = DEFAULT_PARAMS,
                        overrides: dict[str, dict] | None = None, use_sim_time: bool | None = None,
-                       lookahead: float | None = None) -> list[Process]:
-        return [self.start(n, c) for n, c in pipeline_nodes(backend, params_file, overrides, use_sim_time, lookahead)]
+                       lookahead: float | None = None, perception: bool = True) -> list[Process]:
+        return [self.start(n, c) for n, c in pipeline_nodes(backend, params_file, overrides, use_sim_time, lookahead,
+                                                            perception)]
 
     def _read(self, proc: Process) -> None:
         assert proc.popen.stdout is not None
