@@ -24,11 +24,6 @@ from ..folding import FOLD_NAMES, FOLD_SEQUENCE
 from ..nodes.backends import BACKENDS, DEFAULT_BACKEND
 
 
-def _loss_text(loss: float) -> str:
-    """A fold result's loss for the demo's lines (a backend without cloth reports none: NaN)."""
-    return f"loss {loss:.6f} m" if math.isfinite(loss) else "no loss (the backend simulates no cloth)"
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="fold the default shirt's left sleeve through the ROS pipeline; record a bag")
     demo_backends = [b for b in BACKENDS.values() if b.demo]
@@ -60,18 +55,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _terminate(signum, _frame) -> None:
     raise KeyboardInterrupt(signal.Signals(signum).name)
-
-
-def _wait_result(client, launcher, fold: str, timeout: float, after: int):
-    """The fold's /fold/result; RuntimeError as soon as a started process has exited."""
-    deadline = time.monotonic() + timeout
-    while True:
-        try:
-            return client.wait_result(fold, min(1.0, max(0.01, deadline - time.monotonic())), after=after)
-        except TimeoutError:
-            launcher.check_alive()
-            if time.monotonic() >= deadline:
-                raise
 
 
 def run(args: argparse.Namespace) -> int:
@@ -128,45 +111,28 @@ def run(args: argparse.Namespace) -> int:
         launcher.start_pipeline(args.backend, overrides=overrides)
         for p in launcher.procs:
             print(f"[demo] started {p.name} (pid {p.pid})", flush=True)
-        from ..nodes.pipeline_client import PipelineClient
-        from ..nodes.conversions import time_to_ns
+        from ..nodes.pipeline_client import PipelineClient, loss_text
 
         with PipelineClient("clothfold_demo") as client:
-            kp = client.wait_keypoints(120)
+            client.wait_keypoints(120)
             pictures = StagePictures(client, bag.with_suffix("")) if args.backend == "sim" else None
             for topic in ("/gripper_0/target_pose", "/fold/result"):  # record the fold from its start
                 launcher.wait_for(recorder, f"matched {topic} ", 60)
-            for stage, fold in enumerate(folds):
-                launcher.check_alive()
-                before = client.result_count()
-                resp = client.plan(fold, execute=True, timeout=120, retry_refused=10.0)
-                if not resp.success:
-                    losses.append((fold, False, math.nan, resp.message))
-                    print(f"[demo] {fold}: planner refused: {resp.message}", flush=True)
-                    break
-                print(f"[demo] stage {stage}: {resp.message}", flush=True)
-                if pictures is not None:
-                    pictures.planned(resp.spec)
-                res = _wait_result(client, launcher, fold, args.timeout, after=before)
-                losses.append((fold, res.success, res.loss, res.reason))
-                print(f"[demo] {fold}: {'success' if res.success else 'FAILED'}, {_loss_text(res.loss)}"
-                      + (f" ({res.reason})" if res.reason else "") + f", {res.steps} steps", flush=True)
-                if pictures is not None:
-                    png = pictures.finished(stage, fold, res)
-                    if png:
-                        print(f"[demo] {fold}: picture {png}", flush=True)
-                if not res.success:
-                    print(f"[demo] stopping the sequence: {fold} failed", flush=True)
-                    break
-                if stage + 1 < len(folds):
-                    # the next stage is planned from the keypoints of the cloth as it is now (the
-                    # planner refuses keypoints stamped before the last result)
-                    try:
-                        kp = client.wait_keypoints(60, newer_than_ns=time_to_ns(res.header.stamp) - 1)
-                    except TimeoutError:
-                        raise RuntimeError(f"keypoint_node published no keypoints of the cloth after {fold} within "
-                                           "60 s (its log says why, e.g. a rejected fit; --keypoints cloth_state "
-                                           "skips the fit)") from None
+
+            def finished(stage: int, fold: str, res) -> None:
+                png = pictures.finished(stage, fold, res) if pictures is not None else None
+                if png:
+                    print(f"[demo] {fold}: picture {png}", flush=True)
+
+            try:
+                outcomes = client.fold_in_turn(folds, args.timeout, alive=launcher.check_alive,
+                                               planned=pictures.planned if pictures is not None else None,
+                                               finished=finished, say=lambda line: print(f"[demo] {line}", flush=True))
+            except RuntimeError as err:
+                if "no keypoints of the cloth" in str(err):
+                    raise RuntimeError(f"{err}; --keypoints cloth_state skips the fit") from None
+                raise
+            losses = [(o.fold, o.success, o.loss, o.reason) for o in outcomes]
         code = 0 if losses and all(ok for _, ok, _, _ in losses) and len(losses) == len(folds) else 1
     except (RuntimeError, TimeoutError) as err:
         print(f"[demo] error: {err}", file=sys.stderr, flush=True)
@@ -194,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(signal.SIGTERM, old_term)
     print("[demo] ---", flush=True)
     for fold, ok, loss, reason in losses:
-        print(f"[demo] {fold}: {_loss_text(loss)} {'ok' if ok else 'FAILED ' + reason}", flush=True)
+        print(f"[demo] {fold}: {loss_text(loss)} {'ok' if ok else 'FAILED ' + reason}", flush=True)
     print(f"[demo] bag: {bag} ({closed or 'recorder did not report closing the bag'})", flush=True)
     print(f"[demo] wall time {time.monotonic() - tic:.1f} s; all processes stopped", flush=True)
     return code

@@ -1,13 +1,18 @@
-"""PipelineClient: drive a running pipeline from Python (used by `clothfold demo` and the tests).
+"""PipelineClient: drive a running pipeline from Python (used by `clothfold demo`, `clothfold fold`
+and the tests).
 
-Calls /plan_fold, waits for /keypoints and /fold/result. Spins its own node in a
+Calls /plan_fold, waits for /keypoints and /fold/result; `fold_in_turn` runs a fold sequence
+stage by stage, each planned from the keypoints of the cloth as it is after the previous one. Spins its own node in a
 background thread; call `close()` (or use it as a context manager) to stop it.
 rclpy must not be initialised yet in this process, or pass a context.
 """
 from __future__ import annotations
 
+import math
 import threading
 import time
+from dataclasses import dataclass
+from typing import Callable, Sequence
 
 import rclpy
 from clothfold_msgs.action import ExecuteFold
@@ -22,6 +27,23 @@ from .action_client import LockedActionClient
 from . import conversions as rc
 from .waiting import wait_future, wait_until
 from . import common
+
+
+def loss_text(loss: float) -> str:
+    """A fold result's loss for a line of output (a backend without cloth reports none: NaN)."""
+    return f"loss {loss:.6f} m" if math.isfinite(loss) else "no loss (the backend simulates no cloth)"
+
+
+@dataclass(frozen=True)
+class StageOutcome:
+    """One stage of `fold_in_turn`: success, loss (m; NaN: none observed or never run), the
+    reason of a failure, and the backend's /fold/result (None when the planner refused)."""
+
+    fold: str
+    success: bool
+    loss: float
+    reason: str
+    result: FoldResult | None = None
 
 
 class PipelineClient:
@@ -177,3 +199,53 @@ class PipelineClient:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+    def fold_in_turn(self, folds: Sequence[str], timeout: float, alive: Callable[[], None] = lambda: None,
+                     planned: Callable[[FoldSpecMsg], None] | None = None,
+                     finished: Callable[[int, str, FoldResult], None] | None = None,
+                     say: Callable[[str], None] = print, keypoints_wait: float = 60.0) -> list[StageOutcome]:
+        """Plan and execute `folds` one after the other on the running pipeline; stop at the first
+        refusal or failed fold. Each stage waits up to `timeout` s for its /fold/result; before the
+        next, keypoints stamped after that result (the cloth as it is now; the planner refuses older
+        ones). `alive()` is called while waiting and may raise (e.g. a node exited); `planned` /
+        `finished` see each plan and result; `say` prints the progress lines. RuntimeError when no
+        fresh keypoints come within `keypoints_wait` s."""
+        outcomes: list[StageOutcome] = []
+        for stage, fold in enumerate(folds):
+            alive()
+            before = self.result_count()
+            resp = self.plan(fold, execute=True, timeout=120, retry_refused=10.0)
+            if not resp.success:
+                outcomes.append(StageOutcome(fold, False, math.nan, f"planner refused: {resp.message}"))
+                say(f"{fold}: planner refused: {resp.message}")
+                break
+            say(f"stage {stage}: {resp.message}")
+            if planned is not None:
+                planned(resp.spec)
+            res = self._wait_result_alive(fold, timeout, before, alive)
+            outcomes.append(StageOutcome(fold, res.success, res.loss, res.reason, res))
+            say(f"{fold}: {'success' if res.success else 'FAILED'}, {loss_text(res.loss)}"
+                + (f" ({res.reason})" if res.reason else "") + f", {res.steps} steps")
+            if finished is not None:
+                finished(stage, fold, res)
+            if not res.success:
+                say(f"stopping the sequence: {fold} failed")
+                break
+            if stage + 1 < len(folds):
+                try:
+                    self.wait_keypoints(keypoints_wait, newer_than_ns=rc.time_to_ns(res.header.stamp) - 1)
+                except TimeoutError:
+                    raise RuntimeError(f"no keypoints of the cloth after {fold} within {keypoints_wait:g} s (the "
+                                       "keypoint node's log says why, e.g. a rejected fit)") from None
+        return outcomes
+
+    def _wait_result_alive(self, fold: str, timeout: float, after: int, alive: Callable[[], None]) -> FoldResult:
+        """The fold's /fold/result, calling alive() about once a second meanwhile."""
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                return self.wait_result(fold, min(1.0, max(0.01, deadline - time.monotonic())), after=after)
+            except TimeoutError:
+                alive()
+                if time.monotonic() >= deadline:
+                    raise

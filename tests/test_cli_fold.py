@@ -1,0 +1,53 @@
+"""`clothfold fold` against a running kinematic pipeline (a subprocess, as a user runs it beside a
+real driver): two folds in turn, each result awaited, the second planned after the first's
+result; a fold done already is refused by the planner and the command says so; bad arguments
+are one line and exit 2."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from pipeline_helpers import FAST_KINEMATIC, running_pipeline
+
+DOMAIN = 161
+
+
+def clothfold(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-c", "import sys; from clothfold_ros.cli import main; sys.exit(main())", *args]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+
+
+def test_fold_runs_folds_in_turn_on_the_running_pipeline(monkeypatch):
+    with running_pipeline(monkeypatch, DOMAIN, "kinematic", FAST_KINEMATIC, "test_cli_fold") as (launcher, client):
+        client.wait_keypoints(60)
+        out = clothfold("fold", "left_sleeve", "right_sleeve", "--timeout", "60")
+        assert out.returncode == 0, out.stdout + out.stderr
+        lines = out.stdout.splitlines()
+        assert lines[0].startswith("stage 0: ") and "left_sleeve" in lines[0], lines
+        assert any(ln.startswith("stage 1: ") and "right_sleeve" in ln for ln in lines), lines
+        assert lines[-2:] == ["left_sleeve: no loss (the backend simulates no cloth) ok",
+                              "right_sleeve: no loss (the backend simulates no cloth) ok"]
+        results = [r.fold_name for r in client.results]
+        assert results[-2:] == ["left_sleeve", "right_sleeve"] and all(r.success for r in client.results[-2:])
+        assert client.results[-1].header.stamp.sec * 10**9 + client.results[-1].header.stamp.nanosec > \
+            client.results[-2].header.stamp.sec * 10**9 + client.results[-2].header.stamp.nanosec
+
+        again = clothfold("fold", "left_sleeve", "--timeout", "30")
+        assert again.returncode == 1
+        assert "left_sleeve: planner refused: " in again.stdout and "done already" in again.stdout, again.stdout
+        assert again.stdout.splitlines()[-1].startswith("left_sleeve: no loss (the backend simulates no cloth) "
+                                                         "FAILED planner refused")
+
+
+@pytest.mark.parametrize("args,words", [
+    ((), "no fold given"), (("sideways",), "unknown fold(s) sideways"),
+    (("left_sleeve", "--sequence"), "not both"), (("left_sleeve", "--timeout", "nan"), "--timeout must be"),
+])
+def test_bad_arguments_are_one_line_and_exit_2(args, words, capsys):
+    from clothfold_ros.cli import main
+
+    assert main(["fold", *args]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and err.startswith("clothfold fold: ") and words in err, err
