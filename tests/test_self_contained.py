@@ -24,10 +24,7 @@ OLD_NAME = re.compile(r"(?<![A-Za-z0-9_])SPEC(?![A-Za-z0-9_])")
 
 #: Files with an OLD_NAME reference that their owners are still to change (issue 14):
 #: path -> number of lines. An entry that is no longer true fails the test (remove it).
-PENDING: dict[str, int] = {
-    "clothfold_ros/nodes/cloth_sim_node.py": 2,
-    "clothfold_ros/nodes/params.py": 1,
-}
+PENDING: dict[str, int] = {}
 
 
 def repo_files() -> list[Path]:

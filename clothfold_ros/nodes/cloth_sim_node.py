@@ -10,7 +10,7 @@ simulation succeeded and loss <= max_loss. With the same inputs this equals
 `clothfold_ros.sim.runner.run_fold`. The cloth is not stepped while every gripper is
 open (it rests; only the clock runs). Between folds the cloth and the composed target
 are kept: a fold's target is fold_target(previous target, spec, thickness), so a
-sequence of folds is scored like SPEC section 7. A failed step publishes a failed result
+sequence of folds is scored like docs/method.md section 7. A failed step publishes a failed result
 and the node keeps serving (the cloth stays in its last good state).
 
 Publishes /cloth/state (clothfold_msgs/ClothState, latched), /cloth/marker

@@ -170,7 +170,7 @@ def value(node: Node, name: str) -> Any:
 
 
 # -- parameters shared by several nodes ----------------------------------------------------
-SHAPE = Param("shape", 1, "shirt shape preset of SPEC section 1 (1, 2 or 3)", range=(1, 3), read_only=True)
+SHAPE = Param("shape", 1, "shirt shape preset of docs/method.md section 1 (1, 2 or 3)", range=(1, 3), read_only=True)
 MATERIAL = Param("material", "cotton", "cloth material preset", read_only=True,
                  choices=("cotton", "wool", "polyester", "thin_cotton", "thick_cotton"))
 N_GRIPPERS = Param("n_grippers", 2, "number of grippers (topics /gripper_<i>/...)", range=(1, 2), read_only=True)
