@@ -11,6 +11,8 @@ import pytest
 
 from pipeline_helpers import FAST_KINEMATIC, running_pipeline
 
+from clothfold_ros.nodes import conversions as rc
+
 DOMAIN = 161
 
 
@@ -22,21 +24,24 @@ def clothfold(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess
 def test_fold_runs_folds_in_turn_on_the_running_pipeline(monkeypatch):
     with running_pipeline(monkeypatch, DOMAIN, "kinematic", FAST_KINEMATIC, "test_cli_fold") as (launcher, client):
         client.wait_keypoints(60)
+        before = client.result_count()
         out = clothfold("fold", "left_sleeve", "right_sleeve", "--timeout", "60")
         assert out.returncode == 0, out.stdout + out.stderr
         lines = out.stdout.splitlines()
-        assert lines[0].startswith("stage 0: ") and "left_sleeve" in lines[0], lines
-        assert any(ln.startswith("stage 1: ") and "right_sleeve" in ln for ln in lines), lines
+        assert lines[0].startswith("stage 0: ") and "left_sleeve" in lines[0], out.stdout + out.stderr
+        assert any(ln.startswith("stage 1: ") and "right_sleeve" in ln for ln in lines), out.stdout + out.stderr
         assert lines[-2:] == ["left_sleeve: no loss (the backend simulates no cloth) ok",
-                              "right_sleeve: no loss (the backend simulates no cloth) ok"]
-        results = [r.fold_name for r in client.results]
-        assert results[-2:] == ["left_sleeve", "right_sleeve"] and all(r.success for r in client.results[-2:])
-        assert client.results[-1].header.stamp.sec * 10**9 + client.results[-1].header.stamp.nanosec > \
-            client.results[-2].header.stamp.sec * 10**9 + client.results[-2].header.stamp.nanosec
+                              "right_sleeve: no loss (the backend simulates no cloth) ok"], out.stdout + out.stderr
+        # the results as this client saw them (it may get them after the command has exited)
+        first = client.wait_result("left_sleeve", 30, after=before)
+        second = client.wait_result("right_sleeve", 30, after=before)
+        assert first.success and second.success
+        assert rc.time_to_ns(second.header.stamp) > rc.time_to_ns(first.header.stamp)
 
         again = clothfold("fold", "left_sleeve", "--timeout", "30")
-        assert again.returncode == 1
-        assert "left_sleeve: planner refused: " in again.stdout and "done already" in again.stdout, again.stdout
+        assert again.returncode == 1, again.stdout + again.stderr
+        assert "left_sleeve: planner refused: " in again.stdout and "done already" in again.stdout, \
+            again.stdout + again.stderr
         assert again.stdout.splitlines()[-1].startswith("left_sleeve: no loss (the backend simulates no cloth) "
                                                          "FAILED planner refused")
 
