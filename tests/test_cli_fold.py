@@ -4,6 +4,7 @@ result; a fold done already is refused by the planner and the command says so; b
 are one line and exit 2."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 
@@ -22,13 +23,17 @@ def clothfold(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess
 
 
 def test_fold_runs_folds_in_turn_on_the_running_pipeline(monkeypatch):
-    with running_pipeline(monkeypatch, DOMAIN, "kinematic", FAST_KINEMATIC, "test_cli_fold") as (launcher, client):
+    # the tables choose the path: at the method's 4 s it keeps the speed limit (FAST_KINEMATIC's 2 s may not)
+    overrides = {**FAST_KINEMATIC, "fold_planner_node": {"selection": "table", "duration": 4.0}}
+    with running_pipeline(monkeypatch, DOMAIN, "kinematic", overrides, "test_cli_fold") as (launcher, client):
         client.wait_keypoints(60)
         before = client.result_count()
         out = clothfold("fold", "left_sleeve", "right_sleeve", "--timeout", "60")
         assert out.returncode == 0, out.stdout + out.stderr
         lines = out.stdout.splitlines()
-        assert lines[0].startswith("stage 0: ") and "left_sleeve" in lines[0], out.stdout + out.stderr
+        assert lines[0].startswith("stage 0: executing left_sleeve (h="), out.stdout + out.stderr
+        # the reply names the table and fan point the planner chose (h, tilt) from
+        assert re.search(r"; table \w+, fan point \d+\); result on /fold/result", lines[0]), lines[0]
         assert any(ln.startswith("stage 1: ") and "right_sleeve" in ln for ln in lines), out.stdout + out.stderr
         assert lines[-2:] == ["left_sleeve: no loss (the backend simulates no cloth) ok",
                               "right_sleeve: no loss (the backend simulates no cloth) ok"], out.stdout + out.stderr

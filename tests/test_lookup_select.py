@@ -165,7 +165,7 @@ def test_table_selector_layers_directories(tmp_path: Path) -> None:
         prov.write_text(json.dumps({"resolution": {"max_area_m2": 5e-5}, "complete": complete}))
         sel = TableSelector(f"{tmp_path / 'fine'}:{tmp_path / 'missing'}:{tmp_path / 'coarse'}")
         s = sel.select(**args)
-        assert (s.height_ratio, s.tilt_deg) == (FAN[best, 0], FAN[best, 1]), (complete, s)
+        assert (s.height_ratio, s.tilt_deg) == (FAN[best, 0], FAN[best, 1]) and s.point == best, (complete, s)
         assert f"table {tmp_path / winner / 'shape1'}" in s.note, s.note
     (tmp_path / "coarse" / "shape1" / "table.csv").unlink()  # only the incomplete fine one left: it is used
     sel = TableSelector([tmp_path / "fine", tmp_path / "coarse"])
@@ -201,6 +201,7 @@ def test_table_selector(tmp_path: Path) -> None:
     s = sel.select(fold_name="right_sleeve", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=0)
     assert isinstance(s, Selection) and s.scenario == "shape1"
     assert (s.height_ratio, s.tilt_deg) == (FAN[66, 0], FAN[66, 1]) and s.expected_loss > 0 and "66" in s.note
+    assert s.point == 66
     assert s.end_angle_deg == 175.0  # a table whose settings predate the end angle was made at 175 deg
     s = sel.select(fold_name="middle", keypoints=kp, material="cotton", friction=0.5, duration=4.0, stage=4)
     assert s.scenario == "middle" and (s.height_ratio, s.tilt_deg) == (FAN[99, 0], FAN[99, 1])

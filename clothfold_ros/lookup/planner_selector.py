@@ -25,6 +25,7 @@ class Selection:
     expected_loss: float
     note: str
     end_angle_deg: float  # the end angle the table's folds were simulated with (use it to execute)
+    point: int = -1  # the fan point chosen (index into trajectory.fan())
 
 
 class TableSelector:
@@ -90,7 +91,7 @@ class TableSelector:
                      + (f"the {kind} tables are farther" if own else f"no complete {kind} table yet"))
         note += self._left_out()
         end_angle = float(t.provenance.get("settings", {}).get("end_angle_deg", LEGACY_END_ANGLE_DEG))
-        return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note, end_angle)
+        return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note, end_angle, int(c.point))
 
     def _left_out(self) -> str:
         """The note's tail naming the tables not chosen from (no success; partial)."""

@@ -155,24 +155,26 @@ class FoldPlannerNode(Node):
             raise RuntimeError(self._selector_error)
         return self._selector
 
-    def select(self, name: str, keypoints: dict) -> tuple[float, float, float, str]:
-        """(height ratio, tilt deg, end angle deg, note) for the fold: a table's choice comes
-        with the end angle its folds were simulated with."""
+    def select(self, name: str, keypoints: dict) -> tuple[float, float, float, str, str]:
+        """(height ratio, tilt deg, end angle deg, note, source) for the fold: a table's choice
+        comes with the end angle its folds were simulated with; source is the short form
+        ("table shape1, fan point 7" or "parameters") the service's reply carries."""
         h, tilt = params.value(self, "height_ratio"), params.value(self, "tilt_deg")
         end_angle = params.value(self, "end_angle_deg")
         if params.value(self, "selection") == "parameter":
-            return h, tilt, end_angle, "from parameters"
+            return h, tilt, end_angle, "from parameters", "parameters"
         try:
             s = self.selector().select(fold_name=name, keypoints=keypoints, material=params.value(self, "material"),
                                        friction=params.value(self, "friction"),
                                        duration=params.value(self, "duration"), stage=FOLD_SEQUENCE.index(name))
             return float(s.height_ratio), float(s.tilt_deg), s.end_angle_deg, \
-                f"table {s.scenario}: expected loss {s.expected_loss:.4f} m; {s.note}; end angle {s.end_angle_deg:g} deg"
+                f"table {s.scenario}: expected loss {s.expected_loss:.4f} m; {s.note}; end angle {s.end_angle_deg:g} deg", \
+                f"table {s.scenario}, fan point {s.point}"
         except Exception as err:  # noqa: BLE001
             if not params.value(self, "fallback_to_parameters"):
                 raise RuntimeError(f"table selection failed: {err}") from err
             self.get_logger().warn(f"table selection failed ({err}); falling back to parameters as configured")
-            return h, tilt, end_angle, f"from parameters (table failed: {err})"
+            return h, tilt, end_angle, f"from parameters (table failed: {err})", "parameters, the table failed"
 
     # -- service --------------------------------------------------------------------------------
     def on_plan(self, req: PlanFold.Request, resp: PlanFold.Response) -> PlanFold.Response:
@@ -186,7 +188,7 @@ class FoldPlannerNode(Node):
     def _on_plan(self, req: PlanFold.Request, resp: PlanFold.Response) -> PlanFold.Response:
         resp.success = False
         try:
-            msg = self.plan(req.fold_name)
+            msg, source = self.plan(req.fold_name)
         except (ValueError, RuntimeError) as err:
             resp.message = f"cannot plan {req.fold_name!r}: {err}"
             self.get_logger().error(resp.message)
@@ -195,11 +197,11 @@ class FoldPlannerNode(Node):
         self.spec_pub.publish(msg)
         if not req.execute:
             resp.success, resp.message = True, f"planned {req.fold_name} (h={msg.height_ratio:g}, " \
-                                               f"tilt={msg.tilt_deg:g} deg)"
+                                               f"tilt={msg.tilt_deg:g} deg; {source})"
             return resp
         accepted, why = self.send(msg)
         resp.success = accepted
-        resp.message = (f"executing {req.fold_name} (h={msg.height_ratio:g}, tilt={msg.tilt_deg:g} deg); "
+        resp.message = (f"executing {req.fold_name} (h={msg.height_ratio:g}, tilt={msg.tilt_deg:g} deg; {source}); "
                         f"result on {common.FOLD_RESULT}") if accepted else f"planned {req.fold_name} but {why}"
         if accepted:
             self.get_logger().info(resp.message)
@@ -207,7 +209,9 @@ class FoldPlannerNode(Node):
             self.get_logger().error(resp.message)
         return resp
 
-    def plan(self, name: str) -> FoldSpecMsg:
+    def plan(self, name: str) -> tuple[FoldSpecMsg, str]:
+        """The fold's spec message from the latest keypoints, and where (h, tilt) came from
+        (`select`'s source); ValueError / RuntimeError with the reason it cannot be planned."""
         if name not in FOLD_NAMES:
             raise ValueError(f"unknown fold; known folds: {', '.join(FOLD_NAMES)}")
         with self.lock:
@@ -231,12 +235,12 @@ class FoldPlannerNode(Node):
         if name in done:
             raise ValueError(f"the folds made are [{', '.join(done)}]: {name} is done already")
         length = self.flat_length(kp, done, name)
-        h, tilt, end_angle, note = self.select(name, kp)
+        h, tilt, end_angle, note, source = self.select(name, kp)
         spec = fold_spec(name, kp, end_angle, params.value(self, "end_height"), folds_done=done, body_length=length)
         self.get_logger().info(f"{name}: h={h:g}, tilt={tilt:g} deg ({note}); keypoints stamped {stamp * 1e-9:.3f} s")
         return rc.fold_spec_to_msg(rc.PlannedFold(spec, h, tilt, params.value(self, "duration"),
                                                   params.value(self, "settle_time"), FOLD_SEQUENCE.index(name),
-                                                  self.get_clock().now().nanoseconds, folds_done=tuple(done)))
+                                                  self.get_clock().now().nanoseconds, folds_done=tuple(done))), source
 
     def flat_length(self, kp: dict, done: list[str], name: str) -> float | None:
         """The flat shirt's body length (m): the one measured the first time a fold was planned
