@@ -22,6 +22,7 @@ from clothfold_ros.perception.camera import DepthCamera
 from clothfold_ros.perception.visible import visible_keypoints
 
 DOMAIN_POINTS = 171
+DOMAIN_COLOUR = 162
 DOMAIN_CAMERA = 172
 DOMAIN_STATE = 173
 T = 3e-4
@@ -48,8 +49,8 @@ class Feeder:
         self.markers: list[Marker] = []
         node.create_subscription(Marker, OUTLINE_TOPIC, self.markers.append, common.LATCHED)
 
-    def cloud(self, pts: np.ndarray, stamp_ns: int, frame: str = "table") -> None:
-        self.cloud_pub.publish(rc.mesh_points(pts, stamp_ns, frame))
+    def cloud(self, pts: np.ndarray, stamp_ns: int, frame: str = "table", rgb: np.ndarray | None = None) -> None:
+        self.cloud_pub.publish(rc.mesh_points(pts, stamp_ns, frame, rgb=rgb))
 
     def matched(self, timeout: float = 30.0) -> None:
         """Wait until keypoint_node subscribes to the fold announcements: /fold/result is volatile, so a
@@ -539,3 +540,27 @@ def test_points_qos_parameter(monkeypatch):
             KeypointNode()
     finally:
         rclpy.shutdown(context=ctx)
+
+
+def test_an_rgbd_cloud_with_the_table_is_fitted_with_table_color(env):
+    """A real camera's cloud holds the table: with `table_color` the node drops its points by
+    colour and fits the shirt; a cloud without colours is refused with the reason."""
+    env.setenv("ROS_DOMAIN_ID", str(DOMAIN_COLOUR))
+    g = make_shirt(1, max_area=5e-4)
+    cam = DepthCamera(table=True)
+    pts, rgb = cam.colour_cloud(g.vertices, g.triangles, rng=4)
+    with Launcher(domain_id=DOMAIN_COLOUR, echo=False) as launcher:
+        node = launcher.start("keypoint_node", node_command(
+            "keypoint_node", params={"source": "points", "use_sim_time": False,
+                                     "table_color": [float(c) for c in cam.table_rgb]}))
+        launcher.wait_for(node, "estimated from the point cloud", 60)
+        feed = Feeder("test_perception_colour")
+        try:
+            feed.cloud(pts, 1 * S, rgb=rgb)
+            kp, _ = feed.keypoints(0)
+            assert np.median(err_mm(kp, g.keypoints())) < 10.0
+            feed.cloud(pts, 2 * S)  # no colour field
+            launcher.wait_for(node, "no rgb/rgba field", 20)
+            launcher.check_alive()
+        finally:
+            feed.close()

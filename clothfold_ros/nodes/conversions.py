@@ -304,9 +304,22 @@ def mesh_marker(vertices: np.ndarray, triangles: np.ndarray, stamp_ns: int, fram
     return m
 
 
-def mesh_points(vertices: np.ndarray, stamp_ns: int, frame_id: str = TABLE_FRAME) -> PointCloud2:
-    """sensor_msgs/PointCloud2 with float32 x, y, z per vertex (dense, little endian)."""
+def mesh_points(vertices: np.ndarray, stamp_ns: int, frame_id: str = TABLE_FRAME,
+                rgb: np.ndarray | None = None) -> PointCloud2:
+    """sensor_msgs/PointCloud2 with float32 x, y, z per vertex (dense, little endian); with
+    `rgb` ((N, 3), 0-255) also PCL's packed colour, a FLOAT32 field `rgb` holding 0x00RRGGBB."""
     v = np.ascontiguousarray(np.asarray(vertices, dtype=np.float32).reshape(-1, 3))
     fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1) for i, n in enumerate("xyz")]
+    if rgb is None:
+        return PointCloud2(header=header(stamp_ns, frame_id), height=1, width=len(v), fields=fields,
+                           is_bigendian=False, point_step=12, row_step=12 * len(v), data=v.tobytes(), is_dense=True)
+    from ..perception.colour import pack_rgb
+
+    packed = pack_rgb(np.asarray(rgb).reshape(-1, 3))
+    if len(packed) != len(v):
+        raise ValueError(f"{len(packed)} colours for {len(v)} points")
+    rec = np.empty(len(v), dtype=[("xyz", "<f4", 3), ("rgb", "<u4")])
+    rec["xyz"], rec["rgb"] = v, packed
+    fields.append(PointField(name="rgb", offset=12, datatype=PointField.FLOAT32, count=1))
     return PointCloud2(header=header(stamp_ns, frame_id), height=1, width=len(v), fields=fields,
-                       is_bigendian=False, point_step=12, row_step=12 * len(v), data=v.tobytes(), is_dense=True)
+                       is_bigendian=False, point_step=16, row_step=16 * len(v), data=rec.tobytes(), is_dense=True)

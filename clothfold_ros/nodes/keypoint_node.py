@@ -8,8 +8,9 @@ corners are the folded outline's corners). The folds done are learnt from the pi
 
 source = "points" (a real robot's camera, or the sim's /cloth/points): every cloud on
 `points_topic` (sensor_msgs/PointCloud2, float x, y, z) in frame `points_frame` is moved
-into the table frame by the fixed `table_from_camera` transform and fitted with the shirt
-model (`perception.tracking.estimate_state`: the folds done, from the previous estimate's
+into the table frame by the fixed `table_from_camera` transform (with `table_color` set, the
+points of the table's colour are dropped first: an RGB-D cloud that holds the table, packed
+`rgb`/`rgba` field) and fitted with the shirt model (`perception.tracking.estimate_state`: the folds done, from the previous estimate's
 lines, then its shape with every line refitted, then afresh; a fold reported failed and the
 shirt laid flat again are tried too). Publishes /keypoints (vertex ids -1) and the fitted outline as a
 visualization_msgs/Marker LINE_LIST on /keypoints/outline. Clouds arriving while a fold
@@ -85,13 +86,21 @@ PARAMS = [
     Param("pixel", 0.005, "top-view raster size (m)", range=(0.001, 0.05), read_only=True),
     Param("max_residual", 0.01, "a fit with a larger RMS outline residual (m) is rejected", range=(0.0005, 0.5),
           read_only=True),
+    Param("table_color", [-1.0, -1.0, -1.0], "RGB (0-255) of the table top: points within table_color_distance of "
+          "it are dropped before the fit (a cloud that holds the table: an RGB-D camera's); -1 -1 -1 = off",
+          range=(-1.0, 255.0), length=3),
+    Param("table_color_distance", 60.0, "RGB distance (0-255 cube) within which a point is the table's",
+          range=(1.0, 441.0)),
 ]  # the estimator's settings are read once, at start: read-only rather than changed without effect
 
 
 def _heights_ordered(values: dict, changed: list[str]) -> str | None:
-    """Cross check of the cloud's height band (m)."""
+    """Cross checks: the cloud's height band (m); a table colour is three values 0-255 or off."""
     if not values["min_height"] < values["max_height"]:
         return f"min_height ({values['min_height']:g} m) must be below max_height ({values['max_height']:g} m)"
+    rgb = list(values["table_color"])
+    if any(v < 0 for v in rgb) and not all(v < 0 for v in rgb):
+        return f"table_color {rgb} must be three values in 0..255, or -1 -1 -1 (off)"
     return None
 
 
@@ -99,15 +108,48 @@ def cloud_from_msg(m: PointCloud2) -> np.ndarray:
     """(N, 3) float64 x, y, z of a PointCloud2 (float32/float64 fields, any point_step,
     organised or not, rows padded to row_step or not; NaN points kept). ValueError for a
     malformed message."""
-    types = {PointField.FLOAT32: "f4", PointField.FLOAT64: "f8"}
     by_name = {f.name: f for f in m.fields}
     missing = [c for c in "xyz" if c not in by_name]
     if missing:
         raise ValueError(f"cloud has no field(s) {', '.join(missing)} (fields: {[f.name for f in m.fields]})")
+    types = {PointField.FLOAT32: "f4", PointField.FLOAT64: "f8"}
+    data, n = _point_bytes(m)
+    if n == 0:
+        return np.zeros((0, 3))
+    cols = []
+    for c in "xyz":
+        f = by_name[c]
+        if f.datatype not in types:
+            raise ValueError(f"cloud field {c} has datatype {f.datatype}; only FLOAT32/FLOAT64 are supported")
+        cols.append(_column(m, data, n, f, types[f.datatype]).astype(float))
+    return np.column_stack(cols)
+
+
+def cloud_colours(m: PointCloud2) -> np.ndarray:
+    """(N, 3) uint8 RGB of each point of a PointCloud2, from PCL's packed `rgb` (FLOAT32) or
+    `rgba` (UINT32) field (0x00RRGGBB in the field's 32 bits). ValueError when the cloud has
+    neither or it is malformed."""
+    from ..perception.colour import unpack_rgb
+
+    f = next((f for f in m.fields if f.name in ("rgb", "rgba")), None)
+    if f is None:
+        raise ValueError(f"cloud has no rgb/rgba field (fields: {[f.name for f in m.fields]}): table_color needs "
+                         "an RGB-D cloud")
+    if f.datatype not in (PointField.FLOAT32, PointField.UINT32, PointField.INT32):
+        raise ValueError(f"cloud field {f.name} has datatype {f.datatype}; packed colour is FLOAT32 or UINT32")
+    data, n = _point_bytes(m)
+    if n == 0:
+        return np.zeros((0, 3), dtype=np.uint8)
+    return unpack_rgb(_column(m, data, n, f, "u4").astype(np.uint32))
+
+
+def _point_bytes(m: PointCloud2) -> tuple[bytes, int]:
+    """(the points' bytes without row padding, number of points); ValueError when the sizes
+    do not fit."""
     width, height = int(m.width), int(m.height)
     n = width * height
     if n == 0:
-        return np.zeros((0, 3))
+        return b"", 0
     step = int(m.point_step)
     row = int(m.row_step) or width * step  # 0 from some unorganised producers: rows of width points
     if step <= 0 or row < width * step:
@@ -118,18 +160,17 @@ def cloud_from_msg(m: PointCloud2) -> np.ndarray:
     data = bytes(m.data)
     if row != width * step:  # padded rows: the points of each row, without its padding
         data = b"".join(data[r * row:r * row + width * step] for r in range(height))
+    return data, n
+
+
+def _column(m: PointCloud2, data: bytes, n: int, f: PointField, fmt: str) -> np.ndarray:
+    """One field of every point, read as `fmt` ("f4", "f8", "u4") in the cloud's byte order."""
+    step = int(m.point_step)
+    if not 0 <= f.offset <= step - np.dtype(fmt).itemsize:
+        raise ValueError(f"cloud field {f.name} at offset {f.offset} does not fit a point of {step} bytes")
     endian = ">" if m.is_bigendian else "<"
-    cols = []
-    for c in "xyz":
-        f = by_name[c]
-        if f.datatype not in types:
-            raise ValueError(f"cloud field {c} has datatype {f.datatype}; only FLOAT32/FLOAT64 are supported")
-        if not 0 <= f.offset <= step - np.dtype(types[f.datatype]).itemsize:
-            raise ValueError(f"cloud field {c} at offset {f.offset} does not fit a point of {step} bytes")
-        dt = np.dtype({"names": [c], "formats": [endian + types[f.datatype]], "offsets": [f.offset],
-                       "itemsize": step})
-        cols.append(np.frombuffer(data[:n * step], dtype=dt, count=n)[c].astype(float))
-    return np.column_stack(cols)
+    dt = np.dtype({"names": [f.name], "formats": [endian + fmt], "offsets": [f.offset], "itemsize": step})
+    return np.frombuffer(data[:n * step], dtype=dt, count=n)[f.name]
 
 
 class KeypointNode(Node):
@@ -332,6 +373,11 @@ class KeypointNode(Node):
                 raise ValueError(f"cloud frame is {msg.header.frame_id!r}; points_frame is "
                                  f"{params.value(self, 'points_frame')!r}")
             pts = cloud_from_msg(msg) @ self.rotation.T + self.translation
+            table_rgb = params.value(self, "table_color")
+            if min(table_rgb) >= 0:  # the cloud holds the table: keep the points not of its colour
+                from ..perception.colour import off_table_colour
+
+                pts = pts[off_table_colour(cloud_colours(msg), table_rgb, params.value(self, "table_color_distance"))]
             state = estimate_state(pts, self.fold_names(), prior=self.prior,
                                    failed=self.failed.name if self.failed is not None else None,
                                    flat_shirt_area=self.flat_area, config=self.config)

@@ -5,7 +5,8 @@ map): one ray per pixel of a regular grid of pitch `pitch` m over the view recta
 returning the top-most cloth surface hit (z-buffer over the mesh triangles), so covered
 layers are not seen. Each return gets Gaussian depth noise (std `noise` m, along z) and is
 dropped with probability `dropout`; `table=True` also returns the table (z = 0) where no
-cloth is hit, like an unmasked depth image.
+cloth is hit, like an unmasked depth image. `colour_cloud` adds each return's colour, as an
+RGB-D camera's: the cloth's or the table's, with Gaussian noise (8-bit RGB).
 """
 from __future__ import annotations
 
@@ -18,13 +19,17 @@ import numpy as np
 @dataclass(frozen=True)
 class DepthCamera:
     """pitch: pixel size on the table (m); view: (x_min, x_max, y_min, y_max) m; noise: depth
-    noise std (m); dropout: fraction of returns lost (-); table: return table pixels too."""
+    noise std (m); dropout: fraction of returns lost (-); table: return table pixels too;
+    cloth_rgb / table_rgb / colour_noise: colours (0-255) and their noise std for `colour_cloud`."""
 
     pitch: float = 0.004
     view: tuple[float, float, float, float] = (-1.0, 1.0, -0.7, 0.7)
     noise: float = 0.002
     dropout: float = 0.1
     table: bool = False
+    cloth_rgb: tuple[int, int, int] = (200, 205, 215)  # a light shirt
+    table_rgb: tuple[int, int, int] = (60, 45, 35)  # a dark wooden table
+    colour_noise: float = 8.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.pitch) and self.pitch > 0):
@@ -36,6 +41,12 @@ class DepthCamera:
             raise ValueError(f"noise must be >= 0 m, got {self.noise}")
         if not 0.0 <= self.dropout < 1.0:
             raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
+        for name in ("cloth_rgb", "table_rgb"):
+            c = getattr(self, name)
+            if len(c) != 3 or not all(0 <= v <= 255 for v in c):
+                raise ValueError(f"{name} must be 3 values in 0..255, got {c}")
+        if not (math.isfinite(self.colour_noise) and self.colour_noise >= 0):
+            raise ValueError(f"colour_noise must be >= 0, got {self.colour_noise}")
 
     def height_map(self, vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(xs (W,), ys (H,), z (H, W)): top surface height (m) at the pixel centres, NaN where
@@ -94,15 +105,31 @@ class DepthCamera:
               rng: np.random.Generator | int | None = None) -> np.ndarray:
         """(P, 3) float64 points the camera returns for the cloth mesh (vertices (N, 3) m,
         triangles (M, 3)): visible top surface, noisy, with dropout."""
+        return self._returns(vertices, triangles, np.random.default_rng(rng))[0]
+
+    def colour_cloud(self, vertices: np.ndarray, triangles: np.ndarray,
+                     rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(points (P, 3) m, colours (P, 3) uint8): `cloud`'s points (the same for the same rng)
+        and each one's colour, the cloth's or the table's, with noise."""
         rng = np.random.default_rng(rng)
+        pts, on_cloth = self._returns(vertices, triangles, rng)
+        rgb = np.where(on_cloth[:, None], np.asarray(self.cloth_rgb, float), np.asarray(self.table_rgb, float))
+        rgb = rgb + rng.normal(0.0, self.colour_noise, rgb.shape) if self.colour_noise > 0 else rgb
+        return pts, np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+
+    def _returns(self, vertices: np.ndarray, triangles: np.ndarray,
+                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """(points (P, 3) m, (P,) bool: the return is the cloth's, not the table's)."""
         xs, ys, z = self.height_map(vertices, triangles)
         gx, gy = np.meshgrid(xs, ys)
         hit = np.isfinite(z)
+        cloth = hit.copy()
         if self.table:
             z = np.where(hit, z, 0.0)
             hit = np.ones_like(hit)
         pts = np.column_stack([gx[hit], gy[hit], z[hit]])
+        on_cloth = cloth[hit]
         keep = rng.random(len(pts)) >= self.dropout
-        pts = pts[keep]
+        pts, on_cloth = pts[keep], on_cloth[keep]
         pts[:, 2] += rng.normal(0.0, self.noise, len(pts)) if self.noise > 0 else 0.0
-        return pts
+        return pts, on_cloth
