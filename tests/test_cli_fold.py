@@ -47,8 +47,7 @@ def test_fold_runs_folds_in_turn_on_the_running_pipeline(monkeypatch):
         assert again.returncode == 1, again.stdout + again.stderr
         assert "left_sleeve: planner refused: " in again.stdout and "done already" in again.stdout, \
             again.stdout + again.stderr
-        assert again.stdout.splitlines()[-1].startswith("left_sleeve: no loss (the backend simulates no cloth) "
-                                                         "FAILED planner refused")
+        assert again.stdout.splitlines()[-1].startswith("left_sleeve: no loss FAILED planner refused")
 
 
 @pytest.mark.parametrize("args,words", [
@@ -61,3 +60,30 @@ def test_bad_arguments_are_one_line_and_exit_2(args, words, capsys):
     assert main(["fold", *args]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and err.startswith("clothfold fold: ") and words in err, err
+
+
+def test_fold_in_turn_keeps_the_finished_stages_when_a_later_one_raises():
+    """No ROS: PipelineClient.fold_in_turn over a stand-in client whose keypoints never come
+    after the first fold. The first stage's outcome is in the caller's list when it raises."""
+    import math
+    from types import SimpleNamespace
+
+    from clothfold_msgs.msg import FoldResult
+
+    from clothfold_ros.nodes.pipeline_client import PipelineClient, loss_text
+
+    def no_keypoints(*_a, **_k):
+        raise TimeoutError("no keypoints")
+
+    result = FoldResult(fold_name="left_sleeve", success=True, loss=0.004)
+    fake = SimpleNamespace(result_count=lambda: 0, wait_keypoints=no_keypoints,
+                           plan=lambda fold, **_k: SimpleNamespace(success=True, message=f"executing {fold}", spec=None),
+                           _wait_result_alive=lambda fold, timeout, after, alive: result)
+    said, outcomes = [], []
+    with pytest.raises(RuntimeError, match="no keypoints of the cloth after left_sleeve within 5 s"):
+        PipelineClient.fold_in_turn(fake, ["left_sleeve", "right_sleeve"], 10.0, say=said.append,
+                                    keypoints_wait=5.0, outcomes=outcomes)
+    assert [(o.fold, o.success, o.loss) for o in outcomes] == [("left_sleeve", True, pytest.approx(0.004))]
+    assert said == ["stage 0: executing left_sleeve", "left_sleeve: success, loss 0.004000 m, 0 steps"]
+    assert loss_text(math.nan) == "no loss (the backend simulates no cloth)"
+    assert loss_text(math.nan, success=False) == "no loss"

@@ -52,6 +52,8 @@ def test_relative_params_file_and_bag_are_the_callers(tmp_path, monkeypatch, sta
     (["--domain-id", "999"], "ROS_DOMAIN_ID must be in 0..232, got 999"),
     (["-p", "trajectory_node:rate=5"], "bad parameter override"),
     (["--record", "old.mcap"], "old.mcap exists (use --force to overwrite)"),
+    (["-p", "keypoint_nod:source:=points"], "unknown node(s) keypoint_nod"),
+    (["--no-perception", "-p", "keypoint_node:source:=points"], "keypoint_node, which is not started"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(tmp_path, monkeypatch, capsys, started, extra, words):
     monkeypatch.chdir(tmp_path)

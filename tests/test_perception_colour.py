@@ -55,10 +55,35 @@ def test_a_cloud_with_the_table_is_fitted_after_the_colour_mask():
 
 
 def test_keypoint_node_refuses_a_half_set_table_colour():
-    from clothfold_ros.nodes.keypoint_node import _heights_ordered
+    from clothfold_ros.nodes.keypoint_node import _cross_check
 
     base = {"min_height": -0.01, "max_height": 0.25}
-    assert _heights_ordered({**base, "table_color": [-1.0, -1.0, -1.0]}, []) is None  # off
-    assert _heights_ordered({**base, "table_color": [60.0, 45.0, 35.0]}, []) is None
-    assert "table_color [-1.0, 45.0, 35.0] must be three values" in _heights_ordered(
+    assert _cross_check({**base, "table_color": [-1.0, -1.0, -1.0]}, []) is None  # off
+    assert _cross_check({**base, "table_color": [60.0, 45.0, 35.0]}, []) is None
+    assert "table_color [-1.0, 45.0, 35.0] must be three values" in _cross_check(
         {**base, "table_color": [-1.0, 45.0, 35.0]}, ["table_color"])
+
+
+def test_the_nan_share_is_judged_on_the_whole_cloud():
+    """Invalid returns (NaN, of any colour the driver gives them) in 13 % of a cloud that holds
+    the table: fitted, as without the table; judged after the mask they would be over half of
+    what is left and the cloud refused. Over half the cloud NaN is refused as before."""
+    from clothfold_ros.perception.colour import cloth_points
+    from clothfold_ros.perception.estimator import BadCloudError
+
+    g = make_shirt(1, max_area=5e-4)
+    cam = DepthCamera(table=True)
+    pts, rgb = cam.colour_cloud(g.vertices, g.triangles, rng=1)
+    rng = np.random.default_rng(2)
+    holes = rng.random(len(pts)) < 0.13
+    pts[holes], rgb[holes] = np.nan, 0  # black, as some drivers colour invalid pixels
+    kept = cloth_points(pts, rgb, cam.table_rgb, 60.0)
+    assert np.isfinite(kept).all() and len(kept) < 0.3 * len(pts)
+    assert holes.sum() > len(kept)  # what the estimator would have judged: more NaN than shirt
+    est = estimate_keypoints(kept, config=EstimatorConfig())
+    assert np.median(_errors_mm(est, g.keypoints())) < 10.0
+    pts[rng.random(len(pts)) < 0.6] = np.nan
+    with pytest.raises(BadCloudError, match="NaN/inf"):
+        cloth_points(pts, rgb, cam.table_rgb, 60.0)
+    with pytest.raises(ValueError, match="colours for"):
+        cloth_points(pts, rgb[:-1], cam.table_rgb, 60.0)

@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         overrides["cloth_sim_node"]["max_loss"] = args.sequence_max_loss
     print(f"[demo] {args.backend} backend, folds: {', '.join(folds)}, ROS_DOMAIN_ID={domain}, bag {bag}", flush=True)
     print(f"[demo] parameters {DEFAULT_PARAMS}", flush=True)
-    losses: list[tuple[str, bool, float, str]] = []
+    outcomes: list = []  # StageOutcome of each fold that ended
     code = 1
     launcher = Launcher(domain_id=domain, echo=not args.quiet)
     recorder = None
@@ -125,15 +125,15 @@ def run(args: argparse.Namespace) -> int:
                     print(f"[demo] {fold}: picture {png}", flush=True)
 
             try:
-                outcomes = client.fold_in_turn(folds, args.timeout, alive=launcher.check_alive,
-                                               planned=pictures.planned if pictures is not None else None,
-                                               finished=finished, say=lambda line: print(f"[demo] {line}", flush=True))
+                client.fold_in_turn(folds, args.timeout, alive=launcher.check_alive,
+                                    planned=pictures.planned if pictures is not None else None,
+                                    finished=finished, say=lambda line: print(f"[demo] {line}", flush=True),
+                                    outcomes=outcomes)  # the finished stages stay when a later one raises
             except RuntimeError as err:
                 if "no keypoints of the cloth" in str(err):
                     raise RuntimeError(f"{err}; --keypoints cloth_state skips the fit") from None
                 raise
-            losses = [(o.fold, o.success, o.loss, o.reason) for o in outcomes]
-        code = 0 if losses and all(ok for _, ok, _, _ in losses) and len(losses) == len(folds) else 1
+        code = 0 if len(outcomes) == len(folds) and all(o.success for o in outcomes) else 1
     except (RuntimeError, TimeoutError) as err:
         print(f"[demo] error: {err}", file=sys.stderr, flush=True)
         if args.quiet:  # the nodes' output was not shown: their last lines say what each was doing
@@ -159,8 +159,9 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(signal.SIGINT, old_int)
             signal.signal(signal.SIGTERM, old_term)
     print("[demo] ---", flush=True)
-    for fold, ok, loss, reason in losses:
-        print(f"[demo] {fold}: {loss_text(loss)} {'ok' if ok else 'FAILED ' + reason}", flush=True)
+    for o in outcomes:
+        print(f"[demo] {o.fold}: {loss_text(o.loss, o.success)} {'ok' if o.success else 'FAILED ' + o.reason}",
+              flush=True)
     print(f"[demo] bag: {bag} ({closed or 'recorder did not report closing the bag'})", flush=True)
     print(f"[demo] wall time {time.monotonic() - tic:.1f} s; all processes stopped", flush=True)
     return code

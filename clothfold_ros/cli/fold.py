@@ -4,8 +4,10 @@ real robot driver included), as `ros2 service call /plan_fold ...` would, stage 
 Joins the current ROS_DOMAIN_ID, waits for keypoints, then plans and executes each fold through
 /plan_fold (execute: true) and waits for its /fold/result; the next fold is planned from keypoints
 stamped after that result (the cloth as it lies now). Stops at the first refused or failed fold.
-Exit code 0 when every fold succeeded, 1 otherwise, 2 on bad arguments. Starts nothing: start the
-nodes first (`clothfold launch`, `ros2 launch clothfold_ros clothfold.launch.py`).
+Every fold that ended is listed at the end, also when a later one times out or the command is
+interrupted. Exit code 0 when every fold succeeded, 1 otherwise, 2 on bad arguments, 130 on
+Ctrl-C. Starts nothing: start the nodes first (`clothfold launch`, `ros2 launch clothfold_ros
+clothfold.launch.py`).
 """
 from __future__ import annotations
 
@@ -54,14 +56,24 @@ def run(args: argparse.Namespace) -> int:
         return 2
     from ..nodes.pipeline_client import PipelineClient, loss_text
 
+    outcomes: list = []  # StageOutcome of each fold that ended, kept when a later stage raises
+    interrupted = False
     try:
         with PipelineClient("clothfold_fold") as client:
-            client.wait_keypoints(args.keypoints_timeout)
-            outcomes = client.fold_in_turn(folds, args.timeout, keypoints_wait=args.keypoints_timeout,
-                                           say=lambda line: print(line, flush=True))
+            try:
+                client.wait_keypoints(args.keypoints_timeout)
+            except TimeoutError as err:
+                raise TimeoutError(f"{err} (is the pipeline running on this ROS_DOMAIN_ID?)") from None
+            client.fold_in_turn(folds, args.timeout, keypoints_wait=args.keypoints_timeout,
+                                say=lambda line: print(line, flush=True), outcomes=outcomes)
     except (RuntimeError, TimeoutError) as err:
-        print(f"clothfold fold: {err} (is the pipeline running on this ROS_DOMAIN_ID?)", file=sys.stderr)
-        return 1
+        print(f"clothfold fold: {err}", file=sys.stderr)
+    except KeyboardInterrupt:
+        interrupted = True
+        print("clothfold fold: interrupted (the fold under way, if any, goes on; its result is not awaited)",
+              file=sys.stderr)
     for o in outcomes:
-        print(f"{o.fold}: {loss_text(o.loss)} {'ok' if o.success else 'FAILED ' + o.reason}", flush=True)
+        print(f"{o.fold}: {loss_text(o.loss, o.success)} {'ok' if o.success else 'FAILED ' + o.reason}", flush=True)
+    if interrupted:
+        return 130
     return 0 if len(outcomes) == len(folds) and all(o.success for o in outcomes) else 1

@@ -40,7 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from .launcher import Launcher, node_command, run_until_interrupted
+    from .launcher import Launcher, node_command, pipeline_nodes, run_until_interrupted
 
     # The nodes run in the checkout (Launcher.start), not here: paths given relative to the
     # caller's directory are made absolute before they reach a node's command line.
@@ -52,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"no parameters file {args.params_file}")
         if record is not None and record.exists() and not args.force:
             raise ValueError(f"{args.record} exists (use --force to overwrite)")
+        pipeline_nodes(args.backend, params_file, overrides, perception=args.perception)  # refuses bad overrides
         launcher = Launcher(domain_id=args.domain_id)
     except ValueError as err:
         print(f"clothfold launch: {err}", file=sys.stderr)

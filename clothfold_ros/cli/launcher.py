@@ -65,6 +65,9 @@ def pipeline_nodes(backend: str = "sim", params_file: str | Path | None = DEFAUL
     """
     b = get_backend(backend)
     overrides = {k: dict(v) for k, v in (overrides or {}).items()}
+    if not perception and overrides.get("keypoint_node"):  # they would be dropped without a word
+        raise ValueError("parameters given for keypoint_node, which is not started without perception "
+                         "(your own perception node publishes /keypoints)")
     if b.keypoint_source is not None:
         overrides.setdefault("keypoint_node", {}).setdefault("source", b.keypoint_source)
     if use_sim_time is None:

@@ -188,7 +188,7 @@ class FoldPlannerNode(Node):
     def _on_plan(self, req: PlanFold.Request, resp: PlanFold.Response) -> PlanFold.Response:
         resp.success = False
         try:
-            msg, source = self.plan(req.fold_name)
+            msg, source = self.plan_with_source(req.fold_name)
         except (ValueError, RuntimeError) as err:
             resp.message = f"cannot plan {req.fold_name!r}: {err}"
             self.get_logger().error(resp.message)
@@ -209,9 +209,13 @@ class FoldPlannerNode(Node):
             self.get_logger().error(resp.message)
         return resp
 
-    def plan(self, name: str) -> tuple[FoldSpecMsg, str]:
-        """The fold's spec message from the latest keypoints, and where (h, tilt) came from
-        (`select`'s source); ValueError / RuntimeError with the reason it cannot be planned."""
+    def plan(self, name: str) -> FoldSpecMsg:
+        """The fold's spec message from the latest keypoints; ValueError / RuntimeError with the
+        reason it cannot be planned."""
+        return self.plan_with_source(name)[0]
+
+    def plan_with_source(self, name: str) -> tuple[FoldSpecMsg, str]:
+        """`plan`, and where (h, tilt) came from (`select`'s source: "table shape1, fan point 7")."""
         if name not in FOLD_NAMES:
             raise ValueError(f"unknown fold; known folds: {', '.join(FOLD_NAMES)}")
         with self.lock:

@@ -94,7 +94,7 @@ PARAMS = [
 ]  # the estimator's settings are read once, at start: read-only rather than changed without effect
 
 
-def _heights_ordered(values: dict, changed: list[str]) -> str | None:
+def _cross_check(values: dict, changed: list[str]) -> str | None:
     """Cross checks: the cloud's height band (m); a table colour is three values 0-255 or off."""
     if not values["min_height"] < values["max_height"]:
         return f"min_height ({values['min_height']:g} m) must be below max_height ({values['max_height']:g} m)"
@@ -126,8 +126,8 @@ def cloud_from_msg(m: PointCloud2) -> np.ndarray:
 
 
 def cloud_colours(m: PointCloud2) -> np.ndarray:
-    """(N, 3) uint8 RGB of each point of a PointCloud2, from PCL's packed `rgb` (FLOAT32) or
-    `rgba` (UINT32) field (0x00RRGGBB in the field's 32 bits). ValueError when the cloud has
+    """(N, 3) uint8 RGB of each point of a PointCloud2, from PCL's packed `rgb` or `rgba` field
+    (FLOAT32, UINT32 or INT32: 0x00RRGGBB in the field's 32 bits). ValueError when the cloud has
     neither or it is malformed."""
     from ..perception.colour import unpack_rgb
 
@@ -136,7 +136,7 @@ def cloud_colours(m: PointCloud2) -> np.ndarray:
         raise ValueError(f"cloud has no rgb/rgba field (fields: {[f.name for f in m.fields]}): table_color needs "
                          "an RGB-D cloud")
     if f.datatype not in (PointField.FLOAT32, PointField.UINT32, PointField.INT32):
-        raise ValueError(f"cloud field {f.name} has datatype {f.datatype}; packed colour is FLOAT32 or UINT32")
+        raise ValueError(f"cloud field {f.name} has datatype {f.datatype}; packed colour is FLOAT32, UINT32 or INT32")
     data, n = _point_bytes(m)
     if n == 0:
         return np.zeros((0, 3), dtype=np.uint8)
@@ -176,7 +176,7 @@ def _column(m: PointCloud2, data: bytes, n: int, f: PointField, fmt: str) -> np.
 class KeypointNode(Node):
     def __init__(self) -> None:
         super().__init__("keypoint_node")
-        params.declare(self, PARAMS, _heights_ordered)
+        params.declare(self, PARAMS, _cross_check)
         self.pub = self.create_publisher(Keypoints, common.KEYPOINTS, common.LATCHED)
         self.count = 0
         self.errors = ErrorLog(interval=1.0)  # bad inputs: each counted, a flood logged once a second a kind
@@ -375,9 +375,10 @@ class KeypointNode(Node):
             pts = cloud_from_msg(msg) @ self.rotation.T + self.translation
             table_rgb = params.value(self, "table_color")
             if min(table_rgb) >= 0:  # the cloud holds the table: keep the points not of its colour
-                from ..perception.colour import off_table_colour
+                from ..perception.colour import cloth_points
 
-                pts = pts[off_table_colour(cloud_colours(msg), table_rgb, params.value(self, "table_color_distance"))]
+                pts = cloth_points(pts, cloud_colours(msg), table_rgb, params.value(self, "table_color_distance"),
+                                   self.config)
             state = estimate_state(pts, self.fold_names(), prior=self.prior,
                                    failed=self.failed.name if self.failed is not None else None,
                                    flat_shirt_area=self.flat_area, config=self.config)

@@ -29,9 +29,12 @@ from .waiting import wait_future, wait_until
 from . import common
 
 
-def loss_text(loss: float) -> str:
-    """A fold result's loss for a line of output (a backend without cloth reports none: NaN)."""
-    return f"loss {loss:.6f} m" if math.isfinite(loss) else "no loss (the backend simulates no cloth)"
+def loss_text(loss: float, success: bool = True) -> str:
+    """A fold result's loss for a line of output. NaN: a successful fold on a backend without
+    cloth (it measures none), or a fold that failed or never ran."""
+    if math.isfinite(loss):
+        return f"loss {loss:.6f} m"
+    return "no loss (the backend simulates no cloth)" if success else "no loss"
 
 
 @dataclass(frozen=True)
@@ -203,14 +206,17 @@ class PipelineClient:
     def fold_in_turn(self, folds: Sequence[str], timeout: float, alive: Callable[[], None] = lambda: None,
                      planned: Callable[[FoldSpecMsg], None] | None = None,
                      finished: Callable[[int, str, FoldResult], None] | None = None,
-                     say: Callable[[str], None] = print, keypoints_wait: float = 60.0) -> list[StageOutcome]:
+                     say: Callable[[str], None] = print, keypoints_wait: float = 60.0,
+                     outcomes: list[StageOutcome] | None = None) -> list[StageOutcome]:
         """Plan and execute `folds` one after the other on the running pipeline; stop at the first
         refusal or failed fold. Each stage waits up to `timeout` s for its /fold/result; before the
         next, keypoints stamped after that result (the cloth as it is now; the planner refuses older
         ones). `alive()` is called while waiting and may raise (e.g. a node exited); `planned` /
         `finished` see each plan and result; `say` prints the progress lines. RuntimeError when no
-        fresh keypoints come within `keypoints_wait` s."""
-        outcomes: list[StageOutcome] = []
+        fresh keypoints come within `keypoints_wait` s, TimeoutError when a result does not come.
+        Each stage's outcome is appended to `outcomes` (returned) as it ends: a caller that passes
+        its own list keeps the finished stages when a later one raises."""
+        outcomes = [] if outcomes is None else outcomes
         for stage, fold in enumerate(folds):
             alive()
             before = self.result_count()
@@ -224,7 +230,7 @@ class PipelineClient:
                 planned(resp.spec)
             res = self._wait_result_alive(fold, timeout, before, alive)
             outcomes.append(StageOutcome(fold, res.success, res.loss, res.reason, res))
-            say(f"{fold}: {'success' if res.success else 'FAILED'}, {loss_text(res.loss)}"
+            say(f"{fold}: {'success' if res.success else 'FAILED'}, {loss_text(res.loss, res.success)}"
                 + (f" ({res.reason})" if res.reason else "") + f", {res.steps} steps")
             if finished is not None:
                 finished(stage, fold, res)

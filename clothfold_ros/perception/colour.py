@@ -43,3 +43,19 @@ def off_table_colour(rgb: np.ndarray, table_rgb: np.ndarray | list[float], max_d
     if not 0.0 < max_distance <= MAX_RGB_DISTANCE:
         raise ValueError(f"colour distance must be in (0, {MAX_RGB_DISTANCE:.0f}], got {max_distance}")
     return np.linalg.norm(c - t, axis=1) > max_distance
+
+
+def cloth_points(points: np.ndarray, rgb: np.ndarray, table_rgb: np.ndarray | list[float], max_distance: float,
+                 config=None) -> np.ndarray:
+    """The finite points (P, 3) of a cloud (N, 3) whose colour (N, 3) is not the table's. The
+    cloud's share of NaN/inf points is judged on the whole cloud first (`estimator.finite_mask`:
+    BadCloudError over `max_invalid_fraction`), as without the mask: dropping the table first
+    would leave the shirt's few points beside all the invalid ones."""
+    from .estimator import EstimatorConfig, finite_mask
+
+    p = np.asarray(points, dtype=float)
+    c = np.asarray(rgb)
+    if len(c) != len(p):
+        raise ValueError(f"{len(c)} colours for {len(p)} points")
+    finite = finite_mask(p, config or EstimatorConfig())
+    return p[finite & off_table_colour(c, table_rgb, max_distance)]

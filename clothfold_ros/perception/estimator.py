@@ -155,8 +155,9 @@ class KeypointEstimate:
 
 
 # -- segmentation and top view ---------------------------------------------------------------
-def segment(points: np.ndarray, config: EstimatorConfig = EstimatorConfig()) -> np.ndarray:
-    """Cloth points (P, 3) of a cloud (N, 3) in the table frame; PerceptionError if unusable."""
+def finite_mask(points: np.ndarray, config: EstimatorConfig = EstimatorConfig()) -> np.ndarray:
+    """(N,) bool, the finite points of a cloud (N, 3); BadCloudError when it is empty, not
+    (N, 3) or more than `max_invalid_fraction` of it is NaN/inf."""
     p = np.asarray(points, dtype=float)
     if p.ndim != 2 or p.shape[1] != 3:
         raise BadCloudError(f"cloud must have shape (N, 3), got {p.shape}")
@@ -167,7 +168,13 @@ def segment(points: np.ndarray, config: EstimatorConfig = EstimatorConfig()) -> 
     if bad > config.max_invalid_fraction:
         raise BadCloudError(f"{bad:.0%} of the cloud's {len(p)} points are NaN/inf "
                             f"(more than {config.max_invalid_fraction:.0%})")
-    p = p[finite]
+    return finite
+
+
+def segment(points: np.ndarray, config: EstimatorConfig = EstimatorConfig()) -> np.ndarray:
+    """Cloth points (P, 3) of a cloud (N, 3) in the table frame; PerceptionError if unusable."""
+    p = np.asarray(points, dtype=float)
+    p = p[finite_mask(p, config)]
     cloth = p[(p[:, 2] > config.min_height) & (p[:, 2] <= config.max_height)]
     if len(cloth) < config.min_points:
         raise NoClothError(f"no cloth on the table: {len(cloth)} of {len(p)} points in the height band "
@@ -227,7 +234,8 @@ def top_view(cloth: np.ndarray, config: EstimatorConfig = EstimatorConfig()) -> 
         raise NoClothError(f"largest blob is {areas[order[0]]:.3f} m^2 (a shirt needs >= {config.min_area:g} m^2)")
     if areas[order[0]] > config.max_area:
         raise NoClothError(f"largest blob is {areas[order[0]]:.2f} m^2, more than any shirt (max_area "
-                           f"{config.max_area:g} m^2): the table is not separated from the cloth (raise min_height)")
+                           f"{config.max_area:g} m^2): the table is not separated from the cloth (drop its points: table_color for an RGB-D cloud, or a "
+                           "mask upstream; a height band only works for cloth thicker than the depth noise)")
     if len(order) > 1 and areas[order[1]] >= config.blob_fraction * areas[order[0]]:
         raise MultipleBlobsError(f"{int(np.sum(areas >= config.blob_fraction * areas[order[0]]))} separate blobs "
                                  f"on the table ({areas[order[0]]:.3f} and {areas[order[1]]:.3f} m^2): "
