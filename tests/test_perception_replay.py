@@ -32,8 +32,11 @@ def test_the_chain_tracks_a_recorded_sequence_where_a_fresh_fit_fails(bag: str, 
         assert m, (after, start, chain)  # the chain accepted every cloud at rest
         median, worst, residual = int(m[1]), int(m[2]), float(m[3])
         assert median <= 30 and worst <= 120 and residual <= 10.0, (after, chain)
-    # after the middle fold a fresh fit lands on another shirt; the chain stays within 3 cm
-    assert max(int(CELL.match(fresh)[1]) for *_, fresh in rows[-2:]) > 100, rows[-2:]
+    # after the middle fold a fresh fit lands far off (its figure depends on the CPU's numeric code
+    # paths: over 100 mm median where the bags were recorded, 54-68 mm on an AMD EPYC), while the
+    # chain stays within 3 cm: the fresh fit's median is over 40 mm and over twice the chain's
+    worst_fresh = max(rows[-2:], key=lambda r: int(CELL.match(r[5])[1]))
+    assert int(CELL.match(worst_fresh[5])[1]) > max(40, 2 * int(CELL.match(worst_fresh[3])[1])), rows[-2:]
     # where the cloth slid in a side fold, the previous shape with its lines refitted is taken
     if slid:
         assert any(r[2] == "prior shape" for r in rows if r[0] in ("left_side", "right_side")), rows
