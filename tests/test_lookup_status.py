@@ -163,3 +163,23 @@ def test_leaving_the_lock_keeps_another_sweeps_lock(tmp_path):
         lock.write_text(str(os.getppid()))
     assert lock.read_text() == str(os.getppid())
     assert sweep_dir.lock_owner(tmp_path) == os.getppid()
+
+
+def test_headline_says_how_many_are_complete_and_where_the_rest_stand(tmp_path, capsys):
+    root = tmp_path / "tables"
+    for name in ("shape1", "T1"):
+        _write_runs(root / name, [_row(p, 1.0) for p in range(3)])
+        (root / name / sweep_dir.PROVENANCE).write_text(json.dumps({"fan_points": [0, 1, 2]}))
+    _write_runs(root / "middle", [_row(0, 30.0), _row(1, None)])  # partial, one failure (not counted: partial)
+    line = status.headline(status.tables_status(root))
+    assert line.startswith("**2 of 13 tables are complete (`shape1`, `T1`; no failure); `shape2` not started; ")
+    assert "; `middle` partial (2 of 134 fan points); `T2` not started" in line  # in generation order
+    assert line.count("not started") == 10 and line.endswith("`T8` not started.**")
+    full = [status.TableStatus(n, 134, 134, f, None, [1.0], False) for n, f in (("shape1", 0), ("T1", 2))]
+    assert status.headline(full) == "**All 2 tables are complete: 134 fan points each, 2 failed runs.**"
+    # `clothfold tables --write` fills the block where a file has one
+    doc = tmp_path / "doc.md"
+    doc.write_text(f"{status.HEADLINE_BEGIN}\nold\n{status.HEADLINE_END}\n{status.BEGIN}\nx\n{status.END}\n")
+    assert main(["tables", "--tables", str(root), "--write", str(doc)]) == 0
+    assert f"{status.HEADLINE_BEGIN}\n**2 of 13 tables are complete (" in doc.read_text()
+    capsys.readouterr()

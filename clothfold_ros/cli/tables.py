@@ -14,8 +14,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "and what each landscape says")
     add_tables_option(p)
     p.add_argument("--write", type=Path, nargs="*", default=[],
-                   help="also replace the table-status block (and the table-summary block, where a file has "
-                   "one) of these Markdown files")
+                   help="also replace the table-status block (and the table-summary and table-headline "
+                   "blocks, where a file has them) of these Markdown files")
     p.set_defaults(func=run)
 
 
@@ -27,10 +27,12 @@ def run(args: argparse.Namespace) -> int:
     try:
         if not root.is_dir():
             raise FileNotFoundError(f"{root} is not a directory")
-        text = status.markdown(status.tables_status(root))
+        statuses = status.tables_status(root)
+        text, headline = status.markdown(statuses), status.headline(statuses)
         landscapes = summary.markdown(summary.landscape_summaries(root))
-        edited = {f: replace_block(status.replace_block(f.read_text(), text), landscapes, summary.BEGIN, summary.END,
-                                   required=False) for f in args.write}
+        edited = {f: status.replace_headline(replace_block(status.replace_block(f.read_text(), text), landscapes,
+                                                           summary.BEGIN, summary.END, required=False), headline)
+                  for f in args.write}
     except (OSError, ValueError) as err:
         print(f"clothfold tables: {err}", file=sys.stderr)
         return 2

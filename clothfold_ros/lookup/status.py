@@ -20,6 +20,8 @@ from .sweep_dir import PROVENANCE, RUNS, best_row, lock_owner, read_runs
 FAN_SIZE = len(fan())
 BEGIN = "<!-- table-status (clothfold tables) -->"
 END = "<!-- /table-status -->"
+HEADLINE_BEGIN = "<!-- table-headline (clothfold tables) -->"
+HEADLINE_END = "<!-- /table-headline -->"
 
 
 @dataclass(frozen=True)
@@ -127,6 +129,32 @@ def markdown(statuses: list[TableStatus]) -> str:
         total += f", plus {sum(s.wanted for s in unstarted)} runs of tables not started " \
                  f"({', '.join(s.scenario for s in unstarted)})"
     return "\n".join(lines) + total + "."
+
+
+def headline(statuses: list[TableStatus]) -> str:
+    """One bold sentence: how many tables are complete, which, their failures, and where the
+    others stand (for the table-headline block)."""
+    done = [s for s in statuses if s.complete]
+    failed = sum(s.failed for s in done)
+    fails = "no failure" if not failed else f"{failed} failed run{'s' if failed > 1 else ''}"
+    if done and len(done) == len(statuses):
+        sizes = {s.wanted for s in done}
+        each = f"{sizes.pop()} fan points each" if len(sizes) == 1 else "every fan point each sweep covers"
+        return f"**All {len(done)} tables are complete: {each}, {fails}.**"
+    rest = []
+    for s in statuses:
+        if s.complete:
+            continue
+        where = "not started" if s.runs == 0 else \
+            f"{'being swept' if s.sweeping else 'partial'} ({s.runs} of {s.wanted} fan points)"
+        rest.append(f"`{s.scenario}` {where}")
+    names = ", ".join(f"`{s.scenario}`" for s in done) or "none"
+    return f"**{len(done)} of {len(statuses)} tables are complete ({names}; {fails}); {'; '.join(rest)}.**"
+
+
+def replace_headline(text: str, block: str) -> str:
+    """`text` with its table-headline block replaced, where it has one."""
+    return doc_blocks.replace_block(text, block, HEADLINE_BEGIN, HEADLINE_END, required=False)
 
 
 def replace_block(text: str, block: str) -> str:
