@@ -1,5 +1,6 @@
-"""`clothfold tables`: where the lookup tables stand (lookup/status.py) and what each one's
-landscape says (lookup/summary.py), current while sweeps run."""
+"""`clothfold tables`: where the lookup tables stand (lookup/status.py), what each one's
+landscape says (lookup/summary.py) and what the planner chooses from them for the default
+shirt (lookup/choices.py), current while sweeps run."""
 from __future__ import annotations
 
 import argparse
@@ -14,13 +15,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "and what each landscape says")
     add_tables_option(p)
     p.add_argument("--write", type=Path, nargs="*", default=[],
-                   help="also replace the table-status block (and the table-summary and table-headline "
-                   "blocks, where a file has them) of these Markdown files")
+                   help="also replace the table-status block (and the table-summary, table-headline and "
+                   "table-choices blocks, where a file has them) of these Markdown files")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..lookup import status, summary
+    from ..lookup import choices, status, summary
     from ..lookup.doc_blocks import replace_block
 
     root = tables_arg(args)
@@ -30,9 +31,12 @@ def run(args: argparse.Namespace) -> int:
         statuses = status.tables_status(root)
         text, headline = status.markdown(statuses), status.headline(statuses)
         landscapes = summary.markdown(summary.landscape_summaries(root))
-        edited = {f: status.replace_headline(replace_block(status.replace_block(f.read_text(), text), landscapes,
-                                                           summary.BEGIN, summary.END, required=False), headline)
-                  for f in args.write}
+        chosen = _choices_or_reason(choices, root)
+        edited = {}
+        for f in args.write:
+            new = status.replace_headline(status.replace_block(f.read_text(), text), headline)
+            new = replace_block(new, landscapes, summary.BEGIN, summary.END, required=False)
+            edited[f] = replace_block(new, chosen, choices.BEGIN, choices.END, required=False)
     except (OSError, ValueError) as err:
         print(f"clothfold tables: {err}", file=sys.stderr)
         return 2
@@ -41,4 +45,15 @@ def run(args: argparse.Namespace) -> int:
     print(text)
     print()
     print(landscapes)
+    print()
+    print("What the planner chooses for the default shirt (shape 1, cotton, mu 0.5, 4 s):")
+    print(chosen)
     return 0
+
+
+def _choices_or_reason(choices, root: Path) -> str:
+    """The planner's choices on the default shirt, or why there are none (no usable table yet)."""
+    try:
+        return choices.markdown(choices.planner_choices(root))
+    except (FileNotFoundError, ValueError) as err:
+        return f"No choice: {err}"

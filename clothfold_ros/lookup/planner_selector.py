@@ -26,6 +26,8 @@ class Selection:
     note: str
     end_angle_deg: float  # the end angle the table's folds were simulated with (use it to execute)
     point: int = -1  # the fan point chosen (index into trajectory.fan())
+    raw_loss: float = float("nan")  # m, simulated at the point in the nearest table (NaN: failed there)
+    blended: tuple[tuple[str, float], ...] = ()  # (scenario, scaled distance) of the tables used, nearest first
 
 
 class TableSelector:
@@ -91,7 +93,8 @@ class TableSelector:
                      + (f"the {kind} tables are farther" if own else f"no complete {kind} table yet"))
         note += self._left_out()
         end_angle = float(t.provenance.get("settings", {}).get("end_angle_deg", LEGACY_END_ANGLE_DEG))
-        return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note, end_angle, int(c.point))
+        return Selection(c.height_ratio, c.tilt_deg, c.scenarios[0], c.expected_loss, note, end_angle, int(c.point),
+                         float(c.raw_loss), tuple(zip(c.scenarios, map(float, c.distances))))
 
     def _left_out(self) -> str:
         """The note's tail naming the tables not chosen from (no success; partial)."""
