@@ -92,7 +92,10 @@ def test_kinematic_pipeline_and_bad_inputs(pipeline):
             setattr(m, k, v)
         return m
 
-    refusals = {"height_ratio = 1.5 is outside [0.1, 1]": copy(height_ratio=1.5),
+    two_faults = deepcopy(good)  # outside the search space and below the table: the search space is named
+    two_faults.tilt_deg, two_faults.start_poses[0].position.z = 80.0, -0.05
+    refusals = {"tilt_deg = 80 deg is outside [0, 60]": two_faults,
+                "height_ratio = 1.5 is outside [0.1, 1]": copy(height_ratio=1.5),
                 "height_ratio = 0.05 is outside": copy(height_ratio=0.05),
                 "tilt_deg = 90 deg is outside [0, 60]": copy(tilt_deg=90.0),
                 "unknown fold 'foo'": copy(fold_name="foo"),

@@ -84,6 +84,20 @@ SETTLE_RANGE = (0.0, 10.0)  # s
 LAYER_OFFSET_RANGE = (1.0, 8.0)  # x thickness
 
 
+def check_ranges(height_ratio: float, tilt_deg: float, duration: float, settle_time: float,
+                 layer_offset_factor: float) -> str | None:
+    """Reason one of a plan's numbers is outside what this pipeline executes (the lookup's
+    search space for (h, tilt), the timing and layer ranges), or None."""
+    for what, v, (lo, hi), unit in (("height_ratio", height_ratio, HEIGHT_RATIO_RANGE, ""),
+                                    ("tilt_deg", tilt_deg, TILT_RANGE_DEG, " deg"),
+                                    ("duration", duration, DURATION_RANGE, " s"),
+                                    ("settle_time", settle_time, SETTLE_RANGE, " s"),
+                                    ("layer_offset_factor", layer_offset_factor, LAYER_OFFSET_RANGE, "")):
+        if not lo <= v <= hi:
+            return f"{what} = {v:g}{unit} is outside [{lo:g}, {hi:g}]{unit}"
+    return None
+
+
 def check_plan_limits(plan) -> str | None:
     """Reason a (valid, core) FoldPlan is outside what this pipeline executes, or None: a known
     fold name, (h, tilt) inside the lookup's search space, duration, settle time and layer offset
@@ -93,13 +107,9 @@ def check_plan_limits(plan) -> str | None:
     s = plan.spec
     if s.name not in FOLD_NAMES:
         return f"unknown fold {s.name!r}; known folds: {', '.join(FOLD_NAMES)}"
-    for what, v, (lo, hi), unit in (("height_ratio", plan.height_ratio, HEIGHT_RATIO_RANGE, ""),
-                                    ("tilt_deg", plan.tilt_deg, TILT_RANGE_DEG, " deg"),
-                                    ("duration", plan.duration, DURATION_RANGE, " s"),
-                                    ("settle_time", plan.settle_time, SETTLE_RANGE, " s"),
-                                    ("layer_offset_factor", s.layer_offset_factor, LAYER_OFFSET_RANGE, "")):
-        if not lo <= v <= hi:
-            return f"{what} = {v:g}{unit} is outside [{lo:g}, {hi:g}]{unit}"
+    reason = check_ranges(plan.height_ratio, plan.tilt_deg, plan.duration, plan.settle_time, s.layer_offset_factor)
+    if reason:
+        return reason
     if not 1 <= s.n_grippers <= 2:
         return f"a fold needs 1 or 2 grippers; got {s.n_grippers}"
     if any(abs(abs(x) - 1.0) > 1e-9 for x in s.tilt_signs):

@@ -44,7 +44,7 @@ from rclpy.node import Node
 from . import conversions as rc
 from ..pose import Pose
 from . import common, params
-from .limits import check_plan_limits, check_trajectory, check_workspace_params
+from .limits import check_plan_limits, check_ranges, check_trajectory, check_workspace_params
 from .params import Param
 from .waiting import wait_until
 
@@ -144,7 +144,14 @@ class TrajectoryNode(Node):
         cached = self._prepared
         if cached is not None and cached[0] is spec_msg:
             return cached[1]
-        plan = rc.fold_spec_from_msg(spec_msg)  # the core plan checks itself when built
+        try:
+            plan = rc.fold_spec_from_msg(spec_msg)  # the core plan checks itself when built
+        except ValueError as err:  # a number outside the search space says so first (its path may also
+            # reach below the table, which the core refuses when the trajectory is built)
+            m = spec_msg
+            numbers = (m.height_ratio, m.tilt_deg, m.duration, m.settle_time, m.layer_offset_factor)
+            outside = check_ranges(*numbers) if all(math.isfinite(v) for v in numbers) else None
+            raise ValueError(outside or str(err)) from None
         reason = check_plan_limits(plan) or check_trajectory(
             plan.trajectory, params.value(self, "rate"), params.value(self, "workspace_min"),
             params.value(self, "workspace_max"), params.value(self, "max_speed"), params.value(self, "n_grippers"))
