@@ -94,3 +94,15 @@ def test_summary_counts_the_sweeps_fan_points_as_status_does(tmp_path: Path) -> 
     assert row[1] == "3" and row[2].endswith(" 4.00") and row[3] == "5.00", row
     st = status.table_status(d)
     assert (st.runs, st.wanted, st.best["point"]) == (3, 3, 0)
+
+
+def test_a_flat_landscape_has_no_rank_correlation() -> None:
+    """Constant losses over the common points: NaN (printed "nan"), not scipy's warning."""
+    import warnings
+
+    row = lambda p, loss: {"point": p, "loss_m": loss, "success": True, "height_ratio": 0.1, "tilt_deg": 0.0}
+    flat = summary.LandscapeSummary("T1", [row(p, 0.001) for p in range(4)])
+    ranked = summary.LandscapeSummary("shape1", [row(p, 0.001 * (p + 1)) for p in range(4)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.isnan(flat.spearman(ranked)) and ranked.spearman(ranked) == 1.0

@@ -53,12 +53,13 @@ class LandscapeSummary:
         return max(ok, key=lambda r: (r["loss_m"], -r["point"])) if ok else None
 
     def spearman(self, other: "LandscapeSummary") -> float:
-        """Spearman's rho of the losses over the points both completed (NaN under 3)."""
+        """Spearman's rho of the losses over the points both completed (NaN under 3, or when
+        either landscape is flat over them: no ranking to compare)."""
         from scipy.stats import spearmanr
 
         a, b = self.losses(), other.losses()
         common = sorted(set(a) & set(b))
-        if len(common) < 3:
+        if len(common) < 3 or len({a[p] for p in common}) < 2 or len({b[p] for p in common}) < 2:
             return float("nan")
         return float(spearmanr([a[p] for p in common], [b[p] for p in common]).statistic)
 
