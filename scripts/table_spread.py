@@ -7,7 +7,7 @@ with the sweep's own settings), and prints each point's table loss beside the re
 
     python scripts/table_spread.py middle --points 133,84,99 [--dh 1e-3] [--tables config/tables]
 
-Rows are appended to docs/resolution/spread_<scenario>.jsonl (resumable: points already there
+Rows are appended to docs/resolution/spread_<scenario>.jsonl (`--out` another directory) (resumable: points already there
 are skipped). h + dh is used, or h - dh where h + dh would leave the fan (h <= 1). Losses in mm.
 """
 from __future__ import annotations
@@ -37,6 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--points", required=True, help="comma-separated fan indices, e.g. 133,84,99")
     ap.add_argument("--dh", type=float, default=1e-3, help="change of the height ratio (default 1e-3)")
     ap.add_argument("--tables", default=str(ROOT / "config" / "tables"))
+    ap.add_argument("--out", default=str(OUT), help="directory of spread_<scenario>.jsonl (default docs/resolution)")
     a = ap.parse_args(argv)
 
     from clothfold_ros.lookup import sweep_dir as layout
@@ -44,10 +45,13 @@ def main(argv: list[str] | None = None) -> int:
     from clothfold_ros.trajectory import fan
 
     d = Path(a.tables) / a.scenario
+    if not (d / "runs.jsonl").is_file():
+        print(f"{d} holds no sweep (no runs.jsonl)", file=sys.stderr)
+        return 2
     settings = layout.read_settings(d)  # the table's own mesh, stepping, Newton settings
     start = layout.start_file(d)        # a sequence stage starts from the previous stage's best
     table = read_rows(d / "runs.jsonl")
-    out = OUT / f"spread_{a.scenario}.jsonl"
+    out = Path(a.out) / f"spread_{a.scenario}.jsonl"
     done = read_rows(out)
     f = fan()
     try:
@@ -69,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
                 h = float(f[p, 0]) - a.dh
             row, _ = run_job(Job(settings, p, h, float(f[p, 1]), start))
             row["dh"] = h - float(f[p, 0])
-            OUT.mkdir(parents=True, exist_ok=True)
+            out.parent.mkdir(parents=True, exist_ok=True)
             with out.open("a") as fh:
                 fh.write(json.dumps(row) + "\n")
             done[p] = row

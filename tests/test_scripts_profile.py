@@ -1,6 +1,7 @@
 """The solver diagnostics in scripts/ run against today's simulator (a tiny mesh, a few steps)."""
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -80,3 +81,21 @@ def test_loss_breakdown_reads_a_committed_table() -> None:
     assert lines[2].startswith("point 32 (h 0.515, tilt 30.0 deg)")
     bad = _script("loss_breakdown.py", "shape1", "999")
     assert bad.returncode == 2 and "no run" in bad.stderr
+
+
+def test_table_spread_reruns_a_point_once_and_refuses_bad_points(tmp_path: Path) -> None:
+    run_sweep(SweepSettings("T1", max_area=1e-2), tmp_path / "T1", [96], workers=1, progress=False)
+    args = ("T1", "--tables", str(tmp_path), "--out", str(tmp_path / "spread"))
+    out = _script("table_spread.py", *args, "--points", "96")
+    assert out.returncode == 0, out.stderr
+    assert "T1 point 96 (h " in out.stdout and "; h +1e-03: " in out.stdout
+    rows = (tmp_path / "spread" / "spread_T1.jsonl").read_text().splitlines()
+    assert len(rows) == 1 and abs(json.loads(rows[0])["dh"] - 1e-3) < 1e-12
+    again = _script("table_spread.py", *args, "--points", "96")  # resumable: the point is not rerun
+    assert again.returncode == 0 and again.stdout == out.stdout
+    assert len((tmp_path / "spread" / "spread_T1.jsonl").read_text().splitlines()) == 1
+    for bad, says in (("200", "outside the fan"), ("7", "is not in"), ("a", "comma-separated integers")):
+        r = _script("table_spread.py", *args, "--points", bad)
+        assert r.returncode == 2 and says in r.stderr, r.stderr
+    r = _script("table_spread.py", "nosuch", "--tables", str(tmp_path), "--points", "96")
+    assert r.returncode == 2 and "holds no sweep" in r.stderr
