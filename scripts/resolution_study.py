@@ -34,14 +34,9 @@ def area_dir(area: str) -> Path:
 
 
 def read_rows(path: Path) -> dict[int, dict]:
-    if not path.exists():
-        return {}
-    rows = {}
-    for line in path.read_text().splitlines():
-        if line.strip():
-            r = json.loads(line)
-            rows[int(r["point"])] = r
-    return rows
+    """A runs.jsonl-like file's rows by fan point ({} when absent; sweep_dir.read_runs)."""
+    from clothfold_ros.lookup.sweep_dir import read_runs
+    return {int(r["point"]): r for r in read_runs(path)} if path.exists() else {}
 
 
 def spread(args: argparse.Namespace) -> int:

@@ -21,16 +21,6 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "resolution"
 
 
-def read_rows(path: Path) -> dict[int, dict]:
-    rows: dict[int, dict] = {}
-    if path.exists():
-        for line in path.read_text().splitlines():
-            if line.strip():
-                r = json.loads(line)
-                rows[int(r["point"])] = r
-    return rows
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("scenario")
@@ -45,14 +35,14 @@ def main(argv: list[str] | None = None) -> int:
     from clothfold_ros.trajectory import fan
 
     d = Path(a.tables) / a.scenario
-    if not (d / "runs.jsonl").is_file():
+    if not layout.has_runs(d):
         print(f"{d} holds no sweep (no runs.jsonl)", file=sys.stderr)
         return 2
     settings = layout.read_settings(d)  # the table's own mesh, stepping, Newton settings
     start = layout.start_file(d)        # a sequence stage starts from the previous stage's best
-    table = read_rows(d / "runs.jsonl")
-    out = Path(a.out) / f"spread_{a.scenario}.jsonl"
-    done = read_rows(out)
+    table = {int(r["point"]): r for r in layout.read_runs(d)}
+    out = Path(a.out) / f"spread_{a.scenario}.jsonl"  # rows like runs.jsonl's, plus dh
+    done = {int(r["point"]): r for r in layout.read_runs(out)} if out.exists() else {}
     f = fan()
     try:
         points = [int(p) for p in a.points.split(",") if p.strip()]
