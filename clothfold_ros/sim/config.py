@@ -19,7 +19,9 @@ class SimConfig:
     dt: float = 0.04  # s, implicit Euler time step
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)  # m/s^2, table frame
     newton_tol: float = 1e-3  # m/s: stop when RMS(|dx|)/dt <= tol ...
-    newton_window: int = 1  # ... over this many last iterations
+    newton_window: int = 1  # ... over this many last iterations ...
+    force_tol: float | None = None  # m/s: optionally also require the free vertices' unbalanced force, as the
+    #   velocity it would add in one step (RMS of h |g_i| / m_i), below this; None: off (3x the cost at 12K)
     max_newton_iterations: int = 400  # a cap that is hit is a failure to investigate, not a result
     max_line_search_halvings: int = 30
     model_ratio: float = 0.1  # a step gaining less than this share of the model's decrease tries shorter ones (0: off)
@@ -29,7 +31,10 @@ class SimConfig:
     pattern_growth_rings: int = 0  # a new contact pair also adds its neighbours' pairs (rings) to the pattern
     pattern_keep_solves: int = 1  # contact entries unused for this many steps are stale ...
     pattern_prune_fraction: float = 0.0  # ... and dropped once they are this share of the contact entries
-    pattern_growth_iterations: int = 3  # new contact pairs join the pattern in a solve's first N iterations, later ones wait
+    pattern_growth_iterations: int | None = None  # new contact pairs join the pattern in a solve's first N
+    #   iterations, later ones wait for the next solve (their blocks replaced by a diagonal bump); None: they always
+    #   join. Waiting (N = 3 until issue 35) stiffens every contact that forms late in a solve: its Newton steps
+    #   fall short, pass the step-size test, and landing cloth loses its momentum (docs/simulator.md, "Fast folds")
     linear_solver: str = "auto"  # "pardiso", "superlu" or "auto" (PARDISO when MKL is there)
     linear_precision: str = "mixed"  # PARDISO: "mixed" (single factorization, double refinement to 1e-8) or "double"
     xi: float | None = None  # m, minimum mid-surface separation (offset)
@@ -58,6 +63,8 @@ class SimConfig:
             raise ValueError(f"gravity must be 3 finite numbers (m/s^2), got {gravity!r}")
         _real(self, "newton_tol", 0.0, None, low_open=True, unit="m/s")
         _integer(self, "newton_window", 1)
+        if self.force_tol is not None:
+            _real(self, "force_tol", 0.0, None, low_open=True, unit="m/s", extra=" or None (newton_tol)")
         _integer(self, "max_newton_iterations", 1)
         _integer(self, "max_line_search_halvings", 1, 1074)  # 0.5**n must stay > 0
         _real(self, "model_ratio", 0.0, 1.0, high_open=True)
@@ -67,7 +74,8 @@ class SimConfig:
         _integer(self, "pattern_growth_rings", 0)
         _integer(self, "pattern_keep_solves", 1)
         _real(self, "pattern_prune_fraction", 0.0, 1.0)
-        _integer(self, "pattern_growth_iterations", 1)
+        if self.pattern_growth_iterations is not None:
+            _integer(self, "pattern_growth_iterations", 1)
         _choice(self, "linear_solver", ("pardiso", "superlu", "auto"))
         _choice(self, "linear_precision", ("mixed", "double"))
         for name in ("xi", "dhat"):

@@ -408,6 +408,7 @@ class ClothSimulator:
         prev_min = np.inf
         # col: collisions at x (from the warm start, then carried over from the line search)
         diag = self._mass_dof if pull is None else self._mass_dof + np.repeat(pull[0], 3)
+        free = None if pull is None else pull[0] == 0  # vertices no gripper holds
         energy = None  # incremental potential at x (J), from the last line search while kappa is unchanged
         full, sub, sub_version = 0, None, -1  # full directions so far; the subsystem of the moving vertices
         for it in range(1, cfg.max_newton_iterations + 1):
@@ -440,7 +441,8 @@ class ClothSimulator:
             if len(friction):  # friction's blocks first: they may grow the pattern
                 self._friction_slots(friction)
             if hc is not None:
-                slots, vals, _ = self._pattern.contact_slots(hc, grow=it <= cfg.pattern_growth_iterations)
+                slots, vals, _ = self._pattern.contact_slots(hc, grow=cfg.pattern_growth_iterations is None
+                                                                 or it <= cfg.pattern_growth_iterations)
                 contact = (slots, vals)
             friction_hessians = friction.hessians(u) if len(friction) else None
             phases["contact_derivatives"] += time.perf_counter() - tic
@@ -479,12 +481,18 @@ class ClothSimulator:
                     sub, sub_version = self._subsystem(p), self._pattern.version
             phases["linear_solve"] += time.perf_counter() - tic
             residuals.append(residual)
-            if full_direction and len(residuals) >= cfg.newton_window and \
-                    max(residuals[-cfg.newton_window :]) <= cfg.newton_tol:
-                return x, it, halvings, residual, col
-            x_new, col_t, n_halved, energy = self._line_search(x, p, grad, x_hat, x_prev, col, pull, phases, when,
-                                                               f"Newton iteration {it}, residual {residual:.3g} m/s",
-                                                               energy)
+            if full_direction and it > 1 and len(residuals) >= cfg.newton_window and \
+                    max(residuals[-cfg.newton_window :]) <= cfg.newton_tol and \
+                    (cfg.force_tol is None or self._force_residual(grad, free) <= cfg.force_tol):
+                return x, it, halvings, residual, col  # it > 1: the first iterate is never taken as it is (module doc)
+            try:
+                x_new, col_t, n_halved, energy = self._line_search(x, p, grad, x_hat, x_prev, col, pull, phases, when,
+                                                                   f"Newton iteration {it}, residual {residual:.3g} m/s",
+                                                                   energy)
+            except SimulationFailure:
+                if full_direction and residual <= cfg.newton_tol:  # a step below the tolerance that rounding
+                    return x, it, halvings, residual, col  # keeps from lowering the potential: x is converged
+                raise
             halvings += n_halved
             x = x_new
             col = col_t
@@ -499,6 +507,14 @@ class ClothSimulator:
             f"{when}: Newton did not converge in {cfg.max_newton_iterations} iterations "
             f"(residual {residuals[-1]:.3g} m/s)"
         )
+
+    def _force_residual(self, grad: np.ndarray, free: np.ndarray | None) -> float:
+        """RMS over the free vertices of the velocity (m/s) their unbalanced force would add in
+        one step, |g_i| / (m_i h) (g is h^2 x the force); held vertices answer to their grip."""
+        a = grad.reshape(-1, 3) / self.vertex_mass[:, None]
+        if free is not None:
+            a = a[free]
+        return float(np.sqrt(np.mean(np.sum(a * a, axis=1)))) / self.dt if len(a) else 0.0
 
     def _line_search(self, x, p, grad, x_hat, x_prev, col, pull, phases, when: str, context: str, e0=None):
         """Step length along the Newton direction p: (new x, its collisions, halvings, its
