@@ -3,10 +3,10 @@
 # every table's landscape.png and best_worst.png, the 13 landscapes side by side
 # (ROOT/landscapes.png), the leave-one-out regret over the complete tables (ROOT/regret.md) and
 # the table-headline, table-status, table-summary, table-choices and regret-summary blocks of each
-# Markdown file named (a file without a block keeps its text). tests/test_lookup_regret_report.py holds README.md's and
-# docs/lookup.md's regret rows to the tables; the prose around them is updated by hand.
+# Markdown file named (a file without a block keeps its text). tests/test_lookup_regret_report.py holds docs/results.md's
+# and docs/lookup.md's regret rows to the tables; the prose around them is updated by hand.
 # Usage: scripts/report_lookup_tables.sh [ROOT [MARKDOWN ...]]
-#   scripts/report_lookup_tables.sh config/tables README.md docs/lookup.md config/tables/README.md
+#   scripts/report_lookup_tables.sh config/tables docs/results.md docs/lookup.md config/tables/README.md
 set -eu
 if ! command -v clothfold >/dev/null 2>&1; then
   ROOT_DIR=$(cd "$(dirname "$0")/.." && pwd)

@@ -40,8 +40,8 @@ def test_committed_regret_report_is_the_tables(root: str, capsys) -> None:
 
 
 def test_documented_regret_figures_are_the_tables(capsys) -> None:
-    readme, lookup = (ROOT / "README.md").read_text(), (ROOT / "docs" / "lookup.md").read_text()
-    for root, docs in (("config/tables", {"README.md": readme, "docs/lookup.md": lookup}),
+    results, lookup = (ROOT / "docs" / "results.md").read_text(), (ROOT / "docs" / "lookup.md").read_text()
+    for root, docs in (("config/tables", {"docs/results.md": results, "docs/lookup.md": lookup}),
                        ("config/tables_1k2", {"docs/lookup.md": lookup})):
         code, out, err = _regret(capsys, "--tables", str(ROOT / root))
         assert code == 0, err

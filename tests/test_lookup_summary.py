@@ -68,13 +68,13 @@ def test_tables_writes_the_summary_block_where_a_file_has_one(tmp_path: Path, ca
 
 
 def test_documented_summaries_are_the_tables() -> None:
-    """README and docs/lookup.md carry the shipped tables' rows (a table being swept may have
+    """docs/results.md and docs/lookup.md carry the shipped tables' rows (a table being swept may have
     moved on since: its row is not compared)."""
     text = summary.markdown(summary.landscape_summaries(ROOT / "config" / "tables"))
     partial = {s.scenario for s in summary.landscape_summaries(ROOT / "config" / "tables") if len(s.rows) < len(FAN)}
     rows = [ln for ln in text.splitlines()[2:] if ln.split("|")[1].strip() not in partial]
     assert len(rows) >= 12
-    for doc in ("README.md", "docs/lookup.md"):
+    for doc in ("docs/results.md", "docs/lookup.md"):
         block = (ROOT / doc).read_text().split(summary.BEGIN)[1].split(summary.END)[0]
         for row in rows:
             assert row in block, f"{doc}: stale summary row {row!r}: clothfold tables --write {doc}"

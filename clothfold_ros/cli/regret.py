@@ -19,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also hold out and choose from partial tables (default: complete tables only)")
     p.add_argument("--write", type=Path, nargs="*", default=[],
                    help="also replace the regret-summary block (the rules' summary table) of these Markdown files; "
-                   "a file without one is left as it is")
+                   "a file without one is left as it is (the shipped ones: docs/results.md docs/lookup.md)")
     p.add_argument("--tie-margins", default=None, metavar="MM,MM,...",
                    help="also report the robust rule's regret for each of these tie margins (mm; default rule: 0.5)")
     p.set_defaults(func=run)

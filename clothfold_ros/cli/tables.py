@@ -16,7 +16,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_tables_option(p)
     p.add_argument("--write", type=Path, nargs="*", default=[],
                    help="also replace the table-status block (and the table-summary, table-headline and "
-                   "table-choices blocks, where a file has them) of these Markdown files")
+                   "table-choices blocks, where a file has them) of these Markdown files "
+                   "(the shipped ones: docs/results.md docs/lookup.md config/tables/README.md)")
     p.set_defaults(func=run)
 
 
