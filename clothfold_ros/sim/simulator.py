@@ -399,6 +399,12 @@ class ClothSimulator:
 
         pull = (per-vertex spring weight (N,), grip points (N, 3)) adds the grasp energy
         1/2 sum w_i |x_i - grip_i|^2.
+
+        Stopping: the last `newton_window` full directions below `newton_tol` (RMS |dx| / dt),
+        tested from the second iteration on: the first iterate (free cloth where it was) is
+        never accepted as it is, since smoothed static friction's stiff curvature makes its
+        Newton step short even where the cloth should slide (docs/simulator.md, "Fast folds").
+        `force_tol` optionally also bounds the unbalanced force (`_force_residual`).
         """
         cfg = self.config
         h = self.dt
