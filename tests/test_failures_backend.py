@@ -1,5 +1,7 @@
 """kinematic_robot_node driven directly (this test plays trajectory_node): what the backend must
-refuse or fail, and that it says so. A stray close command must not hold /clock, targets sent
+refuse or fail, and that it says so. Its clock stands still while nothing is announced or pending
+(published once a second), runs to an announced start and no further, and waits for the announcement
+of a close command that came first. A stray close command must not hold /clock, targets sent
 while nothing is announced are dropped with a log line, a NaN max_effort is refused, targets
 outside its own workspace fail the fold, a fold whose grippers open before the end of the
 announced motion (a cancel upstream) is a failure, repeated bad input keeps being logged with
@@ -45,18 +47,20 @@ def _rig():
         # stall_timeout long: a clock held for a stray close would stop this test, not time out the fold;
         # stall_timout: misspelt on purpose
         proc = launcher.start("kinematic_robot_node", node_command(
-            "kinematic_robot_node", params={"real_time_factor": 4.0, "stall_timeout": 600.0, "stall_timout": 5.0}))
+            "kinematic_robot_node", params={"real_time_factor": 4.0, "stall_timeout": 600.0, "stall_timout": 5.0,
+                                            "announce_wait": 2.0}))
         launcher.wait_for(proc, "kinematic robot", 60)
         ctx = rclpy.Context()
         rclpy.init(args=[], context=ctx)
         node = Node("test_failures_backend", context=ctx)
         r = type("Rig", (), {})()
         r.proc, r.launcher, r.cond = proc, launcher, threading.Condition()
-        r.clock_ns, r.results = 0, []
+        r.clock_ns, r.results, r.clock_log = 0, [], []
 
         def on_clock(m):
             with r.cond:
                 r.clock_ns = m.clock.sec * 1_000_000_000 + m.clock.nanosec
+                r.clock_log.append((time.monotonic(), r.clock_ns))
                 r.cond.notify_all()
 
         def on_result(m):
@@ -174,12 +178,59 @@ def test_targets_while_idle_are_dropped(rig):
     _log(r, "dropped: the gripper is open and no fold")
 
 
+def _advance_to(r, t_ns: int) -> None:
+    """Move the backend's clock to t_ns the way a fold cancelled before its start does (announced,
+    close and open at its start, no target): the clock runs to it and stands there."""
+    _announce(r, t_ns, 1.0)
+    time.sleep(0.2)
+    _command(r, t_ns, 0.0)
+    _command(r, t_ns, 0.08)
+    _now(r, after_ns=t_ns - 1)
+
+
+def test_the_idle_clock_stands_still_and_is_published_once_a_second(rig):
+    """Nothing announced or pending: the clock stands still (it used to run at real_time_factor and go
+    out on /clock 100 times a second, waking every node of the pipeline per tick); it is published
+    again about once a second so that a node started later learns the time."""
+    r = rig
+    _now(r)
+    t = time.monotonic()
+    time.sleep(3.0)
+    with r.cond:
+        seen = [c for w, c in r.clock_log if w >= t]
+    assert 2 <= len(seen) <= 5 and len(set(seen)) == 1, seen
+
+
+def test_a_close_that_arrives_before_its_announcement_waits_for_it(rig):
+    """The close command (another topic) overtakes /fold/active: the clock must not run to the close
+    and drop it as stray (the fold would then wait at its start until stall_timeout); it waits for
+    the announcement and the fold runs."""
+    r = rig
+    t0 = (max(_now(r), getattr(r, "streamed_until", 0)) // DT_NS + 15) * DT_NS  # 0.15 s of wall time at 4x
+    _command(r, t0, 0.0)
+    time.sleep(0.6)  # four times what the free clock needed to reach t0
+    assert _now(r) < t0
+    spec = _announce(r, t0, 1.0)
+    stamps = [t0 + k * DT_NS for k in range(26)]
+    start = spec.start_poses[0].position
+    before = len(r.results)
+    _targets(r, stamps, [start + [0.002 * k, 0.0, 0.0] for k in range(26)])
+    r.streamed_until = stamps[-1]
+    _command(r, stamps[-1], 0.08)
+    res = _result(r, before)
+    assert res.success and res.steps == 25 and res.fold_name == "left_sleeve", (res.success, res.reason)
+
+
 def test_stray_close_does_not_hold_the_clock(rig):
+    """A close nobody announces: after announce_wait the clock runs to it and drops it (no target at
+    its stamp), and a fold announced later runs (stall_timeout is 600 s: a held clock fails here)."""
     r = rig
     stray = _now(r) + 100 * DT_NS  # 4 s ahead: 1 s at real_time_factor 4; no target, no fold announced
     _command(r, stray, 0.0)
-    _now(r, after_ns=stray + 25 * DT_NS)  # stall_timeout is 600 s: a held clock fails here
     _log(r, f"close command stamped {stray * 1e-9:.3f} s dropped: no target pose")
+    assert _now(r) >= stray
+    ok = _fold(r, 1.0, 1.0)
+    assert ok.success and ok.steps == 25, (ok.success, ok.reason)
 
 
 def test_nan_max_effort_is_refused(rig):
@@ -227,7 +278,8 @@ def test_announcement_arriving_after_its_start_fails_the_fold_at_once(rig):
     res = _result(r, before, timeout=10.0)
     assert not res.success and res.fold_name == "left_sleeve", res.reason
     assert "came too late" in res.reason and "before the clock" in res.reason, res.reason
-    old = _now(r, after_ns=now + 100 * DT_NS)  # 4 s of sim time later
+    _advance_to(r, max(now, getattr(r, "streamed_until", 0)) + 100 * DT_NS)  # 4 s of sim time later
+    old = _now(r)
     n = len(r.results)
     _announce(r, old - 80 * DT_NS, 1.0)  # over 2.2 s ago
     _log(r, f"starts at {(old - 80 * DT_NS) * 1e-9:.3f} s, before the clock")
@@ -245,8 +297,10 @@ def test_fold_cancelled_before_its_start_does_not_hold_the_clock(rig):
     time.sleep(0.2)
     _command(r, t0, 0.0)
     _command(r, t0, 0.08)
-    _now(r, after_ns=t0 + 50 * DT_NS, timeout=15.0)
+    _now(r, after_ns=t0 - 1, timeout=15.0)
     _log(r, f"close at {t0 * 1e-9:.3f} s dropped: the fold was cancelled before it started")
+    ok = _fold(r, 1.0, 1.0)  # the clock runs on to the next fold's start
+    assert ok.success and ok.steps == 25, (ok.success, ok.reason)
 
 
 def test_a_fold_never_announced_fails_naming_it(rig):

@@ -109,7 +109,8 @@ def test_kinematic_pipeline_and_bad_inputs(pipeline):
     # Bad keypoint sets, refused by the planner with the reason: the last good set stays. The model
     # source republishes the good set every 0.5 s, which would hide a bad set the planner took:
     # keypoint_node is paused (SIGSTOP) meanwhile, once the planner has a set newer than the fold.
-    latest = client.wait_keypoints(30, newer_than_ns=time_to_ns(res.header.stamp))
+    # stamped no earlier than the fold's result (the clock stands still after it: at its stamp)
+    latest = client.wait_keypoints(30, newer_than_ns=time_to_ns(res.header.stamp) - 1)
     kp_proc = next(p for p in launcher.procs if p.name == "keypoint_node")
     os.kill(kp_proc.pid, signal.SIGSTOP)
     try:

@@ -7,7 +7,12 @@ wall time itself (never use_sim_time). Subscribes /gripper_<i>/target_pose and
 pose, PoseStamped, every step while closed), /gripper_<i>/state (sensor_msgs/JointState:
 finger opening in m) and /fold/result. Time advances by `LockStep` rules: a step t -> t + dt
 only once the target stamped t + dt of every closed gripper is there; while every gripper
-is open the clock runs at real_time_factor. Subclasses implement the physics hooks.
+is open the clock runs at real_time_factor (in whole steps of dt) to an announced fold's start
+and stops there, and stands still while nothing is announced (commands nobody announced are
+run to after `announce_wait` s). Idle, the main loop sleeps (its timer cancelled; input wakes
+it) and /clock goes out once a second (HEARTBEAT), so that no node of the pipeline wakes per
+tick. The clock starts at 1 s (0 means "no /clock yet" on sim time). Subclasses implement the
+physics hooks.
 
 For a person watching (Foxglove): /gripper_<i>/marker (visualization_msgs/Marker CUBE, latched)
 draws each gripper as its grasp box (GRIPPER_BOX along the gripper x, y, z axes) at its pose,
@@ -73,7 +78,11 @@ BACKEND_PARAMS = [
           range=(-10.0, 10.0), length=3),
     Param("max_speed", 1.0, "the backend's own gripper speed limit (m/s) over one dt step; faster fails the fold",
           range=(0.01, 10.0)),
+    Param("announce_wait", 5.0, "a gripper command with no fold announced on /fold/active for it waits this long "
+          "(wall s) for its announcement before the clock runs to it", range=(0.0, 600.0)),
 ]
+START_NS = 1_000_000_000  # the clock starts at 1 s: 0 reads as "no /clock yet" to a node on sim time
+HEARTBEAT = 1.0  # wall s: a clock standing still is published again this often (nodes started later learn it)
 
 
 class LockStepBackend(Node):
@@ -96,23 +105,34 @@ class LockStepBackend(Node):
         self.marker_pubs = [self.create_publisher(Marker, common.gripper_topic(i, "marker"), common.STREAMED)
                             for i in range(self.n)]
         self.drawn: dict[int, Pose] = {}  # where each gripper is drawn: its last pose (kept after it opens)
+        # created in the order trajectory_node publishes a fold (announcement, commands, targets): the
+        # executor serves the subscriptions that are ready together in creation order, so a fold's first
+        # target is never taken (and dropped as unexpected) before its announcement and close command
+        self.create_subscription(FoldSpecMsg, common.FOLD_ACTIVE, self.on_active, common.LATCHED)
+        for i in range(self.n):
+            self.create_subscription(GripperCommand, common.gripper_topic(i, "command"),
+                                     lambda m, i=i: self.on_command(i, m), common.COMMANDS)
         for i in range(self.n):
             self.create_subscription(PoseStamped, common.gripper_topic(i, "target_pose"),
                                      lambda m, i=i: self.on_target(i, m), common.TARGETS)
-            self.create_subscription(GripperCommand, common.gripper_topic(i, "command"),
-                                     lambda m, i=i: self.on_command(i, m), common.COMMANDS)
-        self.create_subscription(FoldSpecMsg, common.FOLD_ACTIVE, self.on_active, common.LATCHED)
         self.active: rc.PlannedFold | None = None  # the fold being executed (from /fold/active)
         self.announced: rc.PlannedFold | None = None  # the next fold (from /fold/active), not started yet
         self.ended_early: str | None = None  # why the fold whose grippers just opened is a failure
+        self.failed: rc.PlannedFold | None = None  # the fold this backend failed last: its late input is ignored
         self.opening = [0.0] * self.n
         self.last_pose: dict[int, Pose] = {}  # last commanded pose of each closed gripper
         self._last_wall = time.monotonic()
         self._budget_ns = 0
         self._waiting_since: float | None = None
         self._held_since: float | None = None
+        self._unannounced_since: float | None = None  # wall s since commands wait with no fold announced
+        self._clock_sent: tuple[int, float] | None = None  # (clock ns, wall s) of the last /clock
         self.errors = ErrorLog(interval=1.0)
-        self.create_timer(params.value(self, "tick"), self.on_tick)
+        self.ls.now_ns = START_NS
+        # the main loop runs only while something moves or waits (a fold announced, running or settling,
+        # commands pending); idle, it is cancelled and the clock stands still: input wakes it (`wake`)
+        self.tick_timer = self.create_timer(params.value(self, "tick"), self.on_tick)
+        self.create_timer(HEARTBEAT, self.on_heartbeat)
         self.publish_clock()
 
     @staticmethod
@@ -140,6 +160,15 @@ class LockStepBackend(Node):
                 return True
         return False
 
+    def _of_failed_fold(self, i: int, stamp_ns: int) -> bool:
+        """Input stamped inside the motion of the fold this backend failed (its sender streams on until it
+        hears of the failure), for an open gripper with no other fold running or announced then."""
+        f = self.failed
+        if f is None or i in self.ls.closed or self._fold_covers(stamp_ns):
+            return False
+        return f.stamp_ns - STAMP_TOLERANCE_NS <= stamp_ns <= \
+            f.stamp_ns + rc.seconds_to_ns(f.duration) + STAMP_TOLERANCE_NS
+
     def _expects_target(self, i: int, stamp_ns: int) -> bool:
         """A target for gripper i stamped stamp_ns belongs to a fold: the gripper is closed, a close is
         pending for it at or before the stamp, or the running/announced fold's motion covers the stamp."""
@@ -154,11 +183,14 @@ class LockStepBackend(Node):
             rc.check_table_frame(msg.header, "target pose")
             stamp = rc.time_to_ns(msg.header.stamp)
             pose = rc.pose_from_msg(msg.pose, f"gripper_{i} target")
+            if self._of_failed_fold(i, stamp):
+                return  # the sender streams on until it hears of the failure, which is reported already
             if not self._expects_target(i, stamp):
                 self.error_once(f"idle_target{i}", f"gripper_{i} target stamped {stamp * 1e-9:.3f} s dropped: the "
                                 "gripper is open and no fold is running, announced or pending for that time")
                 return
             self.ls.add_target(i, stamp, pose)
+            self.wake()
         except ValueError as err:
             self.error_once(f"target{i}", f"gripper_{i} target pose ignored: {err}")
 
@@ -172,9 +204,15 @@ class LockStepBackend(Node):
             if not math.isfinite(msg.max_effort):
                 raise ValueError(f"max_effort must be finite (N; negative = no limit), got {msg.max_effort}")
             closed = msg.position <= params.value(self, "close_threshold")
+            if self._of_failed_fold(i, rc.time_to_ns(msg.header.stamp)):
+                self.get_logger().info(f"gripper_{i} {'close' if closed else 'open'} command stamped "
+                                       f"{rc.time_to_ns(msg.header.stamp) * 1e-9:.3f} s of the failed fold "
+                                       f"{self.failed.spec.name} ignored (the gripper is open)")
+                return
             self.ls.add_command(i, rc.time_to_ns(msg.header.stamp), closed)
             if not closed:
                 self.opening[i] = msg.position  # applied when due; remembered for the state
+            self.wake()
         except ValueError as err:
             self.error_once(f"cmd{i}", f"gripper_{i} command ignored: {err}")
             if self.ls.closed:
@@ -198,8 +236,10 @@ class LockStepBackend(Node):
                 self.error_once("old_active", late)
             return
         self.announced = plan
+        self.failed = None
         if not self.ls.closed:
-            self.ls.hold_until = plan.stamp_ns  # do not run the idle clock past the fold's start
+            self.ls.hold_until = plan.stamp_ns  # the idle clock runs to the fold's start, not past it
+        self.wake()
 
     def _open_pending(self, gripper: int, stamp_ns: int) -> bool:
         return any(not c.closed and c.gripper == gripper and c.stamp_ns <= stamp_ns + STAMP_TOLERANCE_NS
@@ -211,6 +251,27 @@ class LockStepBackend(Node):
     # -- main loop ------------------------------------------------------------------------------
     def publish_clock(self) -> None:
         self.clock_pub.publish(Clock(clock=rc.ns_to_time(self.ls.now_ns)))
+        self._clock_sent = (self.ls.now_ns, time.monotonic())
+
+    def busy(self) -> bool:
+        """Whether the main loop has anything to do: a gripper closed, a command pending, a fold
+        announced (the clock runs to its start) or work of the subclass (`idle_work`, e.g. settling).
+        Otherwise the clock stands still and the loop sleeps until input wakes it."""
+        return bool(self.ls.closed or self.ls.pending or self.ls.hold_until is not None
+                    or self.announced is not None or self.has_idle_work())
+
+    def wake(self) -> None:
+        """Restart the main loop after idling (input arrived); its pace restarts from now."""
+        if self.tick_timer.is_canceled():
+            self._last_wall, self._budget_ns = time.monotonic(), 0
+            self.tick_timer.reset()
+
+    def on_heartbeat(self) -> None:
+        """Once a second: a clock that stood still since the last /clock is published again (a node
+        started later learns the time; nothing wakes the nodes per tick while nothing moves)."""
+        sent = self._clock_sent
+        if sent is None or sent[0] != self.ls.now_ns or time.monotonic() - sent[1] >= 0.9 * HEARTBEAT:
+            self.publish_clock()
 
     def publish_gripper_state(self, i: int) -> None:
         closed = i in self.ls.closed
@@ -235,6 +296,9 @@ class LockStepBackend(Node):
         except Exception as err:  # noqa: BLE001 - a failed fold never kills the backend
             self.get_logger().error(f"fold failed: {type(err).__name__}: {err}")
             self.fail(f"{type(err).__name__}: {err}")
+        if not self.busy():
+            self.tick_timer.cancel()  # idle: the clock stands still until input wakes the loop
+            self._unannounced_since = None
 
     def _tick(self) -> None:
         start = self.ls.now_ns
@@ -315,8 +379,12 @@ class LockStepBackend(Node):
             if self.idle_work():
                 self.publish_clock()
                 break
+            if self.announced is not None and self.ls.hold_until is None:
+                self.ls.hold_until = self.announced.stamp_ns  # announced while a fold ran: run to its start
+            if not self._may_run_free():
+                break
             before = self.ls.now_ns
-            self.ls.advance_free(self._budget_ns)
+            self.ls.advance_free(self._budget_ns // self.ls.dt_ns * self.ls.dt_ns)  # whole steps: one /clock per dt
             self._budget_ns -= self.ls.now_ns - before
             hold = self.ls.hold_until
             if hold is not None and self.ls.now_ns >= hold - STAMP_TOLERANCE_NS and not self.ls.pending:
@@ -331,8 +399,24 @@ class LockStepBackend(Node):
             else:
                 self._held_since = None
             break
-        if self.ls.now_ns != start or not self.ls.closed:
+        if self.ls.now_ns != start:
             self.publish_clock()
+
+    def _may_run_free(self) -> bool:
+        """Whether the clock may run while every gripper is open: towards an announced fold's start,
+        or towards pending commands nobody announced once they waited announce_wait s for it (their
+        announcement may still be in flight: running the clock to them at once would drop a close
+        whose /fold/active comes a moment later). Never while nothing is announced or pending."""
+        if self.ls.hold_until is not None:
+            self._unannounced_since = None
+            return True
+        if not self.ls.pending:
+            self._unannounced_since = None
+            return False
+        now = time.monotonic()
+        if self._unannounced_since is None:
+            self._unannounced_since = now
+        return now - self._unannounced_since >= params.value(self, "announce_wait")
 
     def _stalled(self, what: str) -> None:
         now = time.monotonic()
@@ -355,6 +439,7 @@ class LockStepBackend(Node):
         self.publish_gripper_markers()  # drawn open
         self.on_abort()
         self.publish_result(False, reason, math.nan)
+        self.failed = self.active
         self.active = None
         self._report_unlogged()
 
@@ -395,6 +480,10 @@ class LockStepBackend(Node):
 
     def idle_work(self) -> bool:
         """Work to do while every gripper is open (e.g. settling); True if something was done."""
+        return False
+
+    def has_idle_work(self) -> bool:
+        """Whether idle_work has something to do (the main loop keeps running for it)."""
         return False
 
     def on_close(self, gripper: int, pose: Pose) -> None:

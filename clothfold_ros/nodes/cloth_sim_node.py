@@ -174,6 +174,9 @@ class ClothSimNode(LockStepBackend):
     def on_all_open(self) -> None:
         self.settle_pending = True  # settled by idle_work on the next tick
 
+    def has_idle_work(self) -> bool:
+        return self.settle_pending
+
     def idle_work(self) -> bool:
         if not self.settle_pending:
             return False

@@ -29,7 +29,8 @@ source = "cloth_state": subscribes /cloth/state and publishes the visible keypoi
 the current mesh (material keypoint vertices while flat; vertex id -1 for keypoints that
 are not a vertex); the flat mesh must be the sim's (parameters shape, max_area).
 
-source = "model": the flat shirt's keypoints once a second, for backends without a cloth.
+source = "model": the flat shirt's keypoints every `model_period` wall seconds and after each
+/fold/result (stamped no earlier than it), for backends without a cloth.
 
 Sources points and cloth_state: a cloth message stamped while a fold executes is held and
 handled after the fold's result. A fold whose result this node cannot see (it started after
@@ -70,7 +71,7 @@ PARAMS = [
     params.SHAPE,
     Param("max_area", 5e-4, "mesh max triangle area (m^2) of the model shirt (source = model; cloth_state: the sim's)",
           range=(1e-5, 1e-2), read_only=True),
-    Param("model_period", 1.0, "republish period of the model keypoints (s)", range=(0.05, 60.0), read_only=True),
+    Param("model_period", 1.0, "republish period of the model keypoints (wall s)", range=(0.05, 60.0), read_only=True),
     Param("points_topic", "/cloth/points", "sensor_msgs/PointCloud2 topic (source = points)", read_only=True),
     Param("points_qos", "latched", "QoS of the points_topic subscription: latched (reliable, transient local: the "
           "sim's /cloth/points) or sensor_data (best effort, volatile: a camera driver's; receives from any "
@@ -226,7 +227,13 @@ class KeypointNode(Node):
             g = make_shirt(params.value(self, "shape"), max_area=params.value(self, "max_area"))
             self.model = (g.keypoints(), dict(g.keypoint_ids))
             self.publish_model()
-            self.create_timer(params.value(self, "model_period"), self.publish_model)
+            # wall period: a simulated clock stands still between folds, and a timer on it would not fire
+            # then; after each /fold/result at once, stamped no earlier than the result (the keypoints of
+            # the cloth as it lies after it, which the planner waits for)
+            self.create_timer(params.value(self, "model_period"), self.publish_model,
+                              clock=Clock(clock_type=ClockType.STEADY_TIME))
+            self.create_subscription(FoldResult, common.FOLD_RESULT,
+                                     lambda m: self.publish_model(rc.time_to_ns(m.header.stamp)), common.RESULTS)
             self.get_logger().info(f"publishing the flat model shirt's keypoints (shape {params.value(self, 'shape')})")
 
     # -- the folds done ----------------------------------------------------------------------------
@@ -433,9 +440,9 @@ class KeypointNode(Node):
                              f"{len(self._garment.vertices)}: set keypoint_node's shape and max_area like the sim's")
         return self._garment
 
-    def publish_model(self) -> None:
+    def publish_model(self, not_before_ns: int = 0) -> None:
         kp, ids = self.model
-        self.pub.publish(rc.keypoints_to_msg(kp, self.get_clock().now().nanoseconds, ids))
+        self.pub.publish(rc.keypoints_to_msg(kp, max(self.get_clock().now().nanoseconds, not_before_ns), ids))
 
     def on_state(self, msg: ClothState) -> None:
         from ..perception.visible import visible_keypoints

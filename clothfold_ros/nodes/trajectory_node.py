@@ -45,6 +45,7 @@ from . import conversions as rc
 from ..pose import Pose
 from . import common, params
 from .limits import check_plan_limits, check_ranges, check_trajectory, check_workspace_params
+from .lockstep import STAMP_TOLERANCE_NS
 from .params import Param
 from .waiting import wait_until
 
@@ -127,8 +128,10 @@ class TrajectoryNode(Node):
         self.result_pub = self.create_publisher(FoldResult, common.FOLD_RESULT, common.RESULTS)
         self.create_subscription(FoldResult, common.FOLD_RESULT, self.on_result, common.RESULTS,
                                  callback_group=self.group)
-        self.results: list[FoldResult] = []
+        self.results: list[FoldResult] = []  # /fold/result messages of the fold under way
         self.results_cv = threading.Condition()
+        self._started = None  # (plan, t0 ns) of the fold under way
+        self._failure: FoldResult | None = None  # the backend's failed result of the fold under way
         self.lock = threading.Lock()
         self.busy: str | None = None  # name of the running fold
         self.server = ActionServer(self, ExecuteFold, common.EXECUTE_FOLD, self.execute,
@@ -175,10 +178,26 @@ class TrajectoryNode(Node):
         return GoalResponse.ACCEPT
 
     def on_result(self, msg: FoldResult) -> None:
+        started = self._started
         with self.results_cv:
+            if started is not None and self._is_result_of(msg, *started) is False:
+                self.get_logger().warn(
+                    f"{common.FOLD_RESULT} ignored: it names fold {msg.fold_name!r} stage {msg.stage} stamped "
+                    f"{rc.time_to_ns(msg.header.stamp) * 1e-9:.3f} s; the fold under way is "
+                    f"{started[0].spec.name!r} stage {started[0].stage} from {started[1] * 1e-9:.3f} s")
+                return
             self.results.append(msg)
             del self.results[:-20]
+            if started is not None and not msg.success and self._failure is None:
+                self._failure = msg  # the backend gave up on the fold under way: stop streaming it
             self.results_cv.notify_all()
+
+    @staticmethod
+    def _is_result_of(msg: FoldResult, plan, t0: int) -> bool:
+        """Whether a /fold/result is the one of the fold `plan` started at t0: its name and stage, stamped
+        at or after t0 (a driver copies name and stage from /fold/active and stamps on the same clock)."""
+        return (msg.fold_name == plan.spec.name and int(msg.stage) == int(plan.stage)
+                and rc.time_to_ns(msg.header.stamp) >= t0 - STAMP_TOLERANCE_NS)
 
     # -- execution ----------------------------------------------------------------------------
     def now_ns(self) -> int:
@@ -213,6 +232,7 @@ class TrajectoryNode(Node):
 
     def execute(self, handle) -> ExecuteFold.Result:
         self._started = None  # (plan, t0 ns) once the fold is under way
+        self._failure = None
         try:
             return self._execute(handle)
         except Exception as err:  # noqa: BLE001 - never leave the node busy
@@ -226,6 +246,7 @@ class TrajectoryNode(Node):
             result = self._report_failure(handle, f"aborted: {err}")
             return ExecuteFold.Result(success=False, message=f"{type(err).__name__}: {err}", result=result)
         finally:
+            self._started = None
             with self.lock:
                 self.busy = None
 
@@ -255,11 +276,14 @@ class TrajectoryNode(Node):
         return result
 
     def _wait_clock(self, until_ns: int, stall: float, handle, cancellable: bool = True) -> str | None:
-        """Wait until the clock reaches until_ns; reason on stall or (if cancellable) cancel."""
+        """Wait until the clock reaches until_ns; reason on stall, a failure the backend reported
+        ("backend failed") or (if cancellable) cancel."""
         last, since = self.now_ns(), time.monotonic()
         while self.now_ns() < until_ns:
             if not self.context.ok():
                 return "shutting down"
+            if self._failure is not None:
+                return "backend failed"
             if cancellable and handle.is_cancel_requested:
                 return "cancelled"
             now = self.now_ns()
@@ -285,11 +309,12 @@ class TrajectoryNode(Node):
                 raise RuntimeError(f"no clock: {reason}")
         times, pos, quat = traj.sample(rate)
         t0 = self.now_ns() + self._start_lead_ns()
-        self._started = (plan, t0)
         stamps = [t0 + rc.seconds_to_ns(t) for t in times]
         poses = [[Pose(pos[k, g], quat[k, g]) for g in grippers] for k in range(len(times))]
         with self.results_cv:
             self.results.clear()
+            self._failure = None
+            self._started = (plan, t0)
         active = rc.fold_spec_to_msg(dataclasses.replace(plan, stamp_ns=t0))
         self.active_pub.publish(active)
         for g in grippers:
@@ -303,6 +328,8 @@ class TrajectoryNode(Node):
         while k < len(stamps):
             if not self.context.ok():
                 raise RuntimeError("shutting down during the motion")
+            if self._failure is not None:
+                break
             if handle.is_cancel_requested:
                 cancelled = True
                 break
@@ -323,6 +350,8 @@ class TrajectoryNode(Node):
                 time.sleep(min(1.0 / rate, 0.01))
         t_open = stamps[max(k - 1, 0)]
         self.command(grippers, False, t_open)
+        if self._failure is not None:
+            return self._backend_failed(handle, spec.name, k, len(stamps))
         if cancelled:
             handle.canceled()
             log.warn(f"fold {spec.name} cancelled; grippers open at {t_open * 1e-9:.3f} s")
@@ -331,6 +360,8 @@ class TrajectoryNode(Node):
         # every target and the open command are sent: the backend runs the fold to its end and
         # reports it, so a cancel from here on cannot stop it (it would only add a failed result)
         reason = self._wait_clock(t_open, stall, handle, cancellable=False)
+        if reason == "backend failed":
+            return self._backend_failed(handle, spec.name, k, len(stamps))
         if reason:
             raise RuntimeError(f"waiting for the end of the motion: {reason}")
         if handle.is_cancel_requested:
@@ -353,9 +384,22 @@ class TrajectoryNode(Node):
         log.info(f"done: {msg}")
         return ExecuteFold.Result(success=ok, message=msg, result=result)
 
+    def _backend_failed(self, handle, name: str, sent: int, total: int) -> ExecuteFold.Result:
+        """The backend reported the fold under way failed: its streaming stopped, the goal aborted with
+        the backend's result (published already: no second one), the node free for the next fold."""
+        result = self._failure
+        self.get_logger().error(f"fold {name} failed (reported by the backend after {sent} of {total} samples were "
+                                f"sent; streaming stopped): {result.reason}")
+        handle.abort()
+        return ExecuteFold.Result(success=False, message=f"{name} failed: {result.reason}", result=result)
+
     def _wait_result(self, name: str, t0: int, timeout: float) -> FoldResult | None:
+        started = self._started
+
         def probe() -> FoldResult | bool | None:  # False: shutting down, stop waiting
-            r = next((r for r in self.results if r.fold_name == name and rc.time_to_ns(r.header.stamp) >= t0), None)
+            r = next((r for r in self.results if (self._is_result_of(r, *started) if started is not None else
+                                                  r.fold_name == name and rc.time_to_ns(r.header.stamp) >= t0)),
+                     None)
             return r if r is not None else (None if self.context.ok() else False)
 
         r = wait_until(self.results_cv, probe, timeout, poll=0.5)
