@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -308,6 +308,6 @@ def fold_spec(
     return FoldSpec(name, line_point, d, starts, tuple(ends), tuple(signs), LAYER_OFFSET_FACTOR[kind])
 
 
-def fold_sequence_specs(keypoints: Mapping[str, object], **kwargs: Any) -> list[FoldSpec]:
+def fold_sequence_specs(keypoints: Mapping[str, object], **kwargs: float) -> list[FoldSpec]:
     """All FOLD_SEQUENCE specs from the flat shirt's keypoints (as the study planned them)."""
     return [fold_spec(n, keypoints, **kwargs) for n in FOLD_SEQUENCE]

@@ -151,10 +151,10 @@ def _check_simple_polygon(p: np.ndarray) -> None:
             t = [(q - a[i[k]]) @ d / (d @ d) for q in (a[j[k]], b[j[k]])]
             crossing[k] = max(t) >= 0.0 and min(t) <= 1.0
     if np.any(crossing):
-        e = int(np.flatnonzero(crossing)[0])
+        k = int(np.flatnonzero(crossing)[0])
         raise ValueError(
-            f"shirt outline self-intersects: edge {KEYPOINT_NAMES[i[e]]}-{KEYPOINT_NAMES[(i[e] + 1) % n]} "
-            f"meets edge {KEYPOINT_NAMES[j[e]]}-{KEYPOINT_NAMES[(j[e] + 1) % n]}")
+            f"shirt outline self-intersects: edge {KEYPOINT_NAMES[i[k]]}-{KEYPOINT_NAMES[(i[k] + 1) % n]} "
+            f"meets edge {KEYPOINT_NAMES[j[k]]}-{KEYPOINT_NAMES[(j[k] + 1) % n]}")
     area2 = np.sum(a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1])
     if area2 <= 0:
         raise ValueError("shirt outline is not counter-clockwise")
@@ -219,8 +219,8 @@ def make_shirt(shape: ShirtShape | int = 1, max_area: float = DEFAULT_MAX_AREA, 
 
     s = _as_shape(shape)
     if not (math.isfinite(max_area) and MAX_AREA_RANGE[0] <= max_area <= MAX_AREA_RANGE[1]):
-        raise ValueError(f"max_area must be a triangle area in m^2 within "
-                         f"{MAX_AREA_RANGE[0]:g}..{MAX_AREA_RANGE[1]:g}, got {max_area}")
+        raise ValueError(f"max_area must be a triangle area in m^2 within {MAX_AREA_RANGE[0]:g}..{MAX_AREA_RANGE[1]:g}, "
+                         f"got {max_area}")
     if not math.isfinite(z):
         raise ValueError(f"z must be finite, got {z}")
     outline = shirt_outline(s)

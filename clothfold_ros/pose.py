@@ -17,8 +17,7 @@ class Pose:
     def __post_init__(self) -> None:
         p, q = np.asarray(self.position, dtype=float), np.asarray(self.quaternion, dtype=float)
         if p.size != 3 or q.size != 4:
-            raise ValueError(f"pose needs a 3-vector position and a 4-vector quaternion, "
-                             f"got sizes {p.size} and {q.size}")
+            raise ValueError(f"pose needs a 3-vector position and a 4-vector quaternion, got sizes {p.size} and {q.size}")
         p, q = p.reshape(3), q.reshape(4)
         if not (np.all(np.isfinite(p)) and np.all(np.isfinite(q))):
             raise ValueError(f"pose has non-finite values: position={p}, quaternion={q}")

@@ -13,6 +13,6 @@ from .reader import BagMessage, BagReader
 from .recover import RecoveryReport, recover
 from .writer import BagWriter
 
-__all__ = ["BagError", "BagMessage", "FilterReport", "BagReader", "BagWriter", "MessageDefinition", "Qos",
-           "RecoveryReport", "TopicInfo", "bag_info", "dump_qos", "filter_bag", "from_profile", "message_definition",
-           "parse_qos", "playback_qos", "recover", "type_hash"]
+__all__ = ["BagError", "BagMessage", "FilterReport", "BagReader", "BagWriter", "MessageDefinition", "Qos", "RecoveryReport",
+           "TopicInfo", "bag_info", "dump_qos", "filter_bag", "from_profile", "message_definition", "parse_qos", "playback_qos", "recover",
+           "type_hash"]

@@ -7,7 +7,7 @@ import os
 from .reader import BagReader
 
 
-def _size(n: float) -> str:
+def _size(n: int) -> str:
     for unit in ("B", "KiB", "MiB", "GiB"):
         if n < 1024 or unit == "GiB":
             return f"{n:.1f} {unit}" if unit != "B" else f"{n} B"

@@ -64,8 +64,7 @@ class Qos:
         return cls(history=_enum(d["history"], HISTORY), depth=int(d["depth"]),
                    reliability=_enum(d["reliability"], RELIABILITY), durability=_enum(d["durability"], DURABILITY),
                    deadline_ns=_ns(d["deadline"]), lifespan_ns=_ns(d["lifespan"]),
-                   liveliness=_enum(d["liveliness"], LIVELINESS),
-                   liveliness_lease_ns=_ns(d["liveliness_lease_duration"]),
+                   liveliness=_enum(d["liveliness"], LIVELINESS), liveliness_lease_ns=_ns(d["liveliness_lease_duration"]),
                    avoid_ros_namespace_conventions=bool(d["avoid_ros_namespace_conventions"]))
 
 

@@ -26,9 +26,8 @@ from .layout import TopicInfo
 from .qos import parse_qos
 
 # what the mcap library (and zstd/lz4 below it) raises on damaged input
-_DAMAGE: tuple[type[BaseException], ...] = (
-    McapError, CRCValidationError, EOFError, struct.error, ValueError, KeyError, IndexError, zlib.error,
-    UnicodeDecodeError, MemoryError, OSError, OverflowError)
+_DAMAGE = (McapError, CRCValidationError, EOFError, struct.error, ValueError, KeyError, IndexError, zlib.error,
+           UnicodeDecodeError, MemoryError, OSError, OverflowError)
 try:  # zstandard.ZstdError is not a ValueError
     import zstandard
 

@@ -155,14 +155,14 @@ def _write(dst: Path, schemas: dict[int, Schema], channels: dict[int, Channel], 
             writer.add_topic(ch.topic, schema.name, qos, definition=schema.data.decode("utf-8", "replace"),
                              type_hash=ch.metadata.get("topic_type_hash", ""))
         for msg in sorted(kept, key=lambda m: m.log_time):
-            owner = channels.get(msg.channel_id)
-            if owner is not None and owner.topic in report.foreign:
-                report.foreign[owner.topic] += 1
+            ch = channels.get(msg.channel_id)
+            if ch is not None and ch.topic in report.foreign:
+                report.foreign[ch.topic] += 1
                 continue
-            if owner is None or owner.topic not in writer.topics:
+            if ch is None or ch.topic not in writer.topics:
                 report.orphans += 1
                 continue
-            writer.write(owner.topic, msg.data, msg.log_time, msg.publish_time)
+            writer.write(ch.topic, msg.data, msg.log_time, msg.publish_time)
             report.topics[ch.topic] = report.topics.get(ch.topic, 0) + 1
             report.messages += 1
         writer.custom_data["recovered_from"] = str(report.source)

@@ -15,7 +15,6 @@ import numbers
 import os
 import time
 from pathlib import Path
-from typing import IO, cast
 
 from mcap.writer import CompressionType, Writer
 
@@ -95,8 +94,7 @@ class BagWriter:
         except OSError as err:
             raise BagError(f"cannot create {self.file_path}: {err.strerror}") from None
         comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
-        # _DirectFile has the file methods the Writer uses (write, tell, flush)
-        self._mcap = Writer(cast(IO[bytes], self._stream), chunk_size=chunk_size, compression=comp)
+        self._mcap = Writer(self._stream, chunk_size=chunk_size, compression=comp)
         self._mcap.start(profile=layout.PROFILE, library=LIBRARY)
         self.custom_data = dict(custom_data or {})
         self.max_chunk_age = max_chunk_age

@@ -13,12 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
-
-if TYPE_CHECKING:  # only for the annotation (planner_choices imports it where it runs)
-    from .planner_selector import Selection
 
 BEGIN = "<!-- table-choices (clothfold tables) -->"
 END = "<!-- /table-choices -->"
@@ -32,7 +28,7 @@ class PlannerChoice:
 
     fold: str
     keypoints: str
-    selection: Selection | None
+    selection: object | None  # planner_selector.Selection
     error: str = ""
     partial: tuple[tuple[str, int], ...] = ()  # (scenario, fan points so far) of the partial tables used
 
@@ -40,7 +36,7 @@ class PlannerChoice:
 def sequence_keypoints(shape: int = SHAPE, material: str = MATERIAL) -> list[dict[str, np.ndarray]]:
     """Per fold of FOLD_SEQUENCE, the keypoints (name -> (3,) m) seen before it when the earlier
     folds were made ideally, each planned from the keypoints seen before it."""
-    from ..folding import FOLD_SEQUENCE, FoldSpec, body_length, fold_spec
+    from ..folding import FOLD_SEQUENCE, body_length, fold_spec
     from ..garment import KEYPOINT_NAMES
     from ..perception.visible import ideal_visible_keypoints
     from .scenario import flat_keypoints
@@ -49,8 +45,7 @@ def sequence_keypoints(shape: int = SHAPE, material: str = MATERIAL) -> list[dic
     outline = np.array([flat[n][:2] for n in KEYPOINT_NAMES])
     z = float(flat[KEYPOINT_NAMES[0]][2])
     length = body_length(flat)
-    seen: list[dict[str, np.ndarray]] = []
-    specs: list[FoldSpec] = []
+    seen, specs = [], []
     for fold in FOLD_SEQUENCE:
         xy = ideal_visible_keypoints(outline, specs)
         kp = {n: np.array([x, y, z]) for n, (x, y) in zip(KEYPOINT_NAMES, xy)}

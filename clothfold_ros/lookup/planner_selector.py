@@ -51,8 +51,7 @@ class TableSelector:
         if len(self.unusable) == len(self.tables):
             raise ValueError(f"TableSelector: no table in {self.table_dir} has a successful run")
         #: partial tables (a sweep still under way) that do not yet hold the coarse subsample of the
-        #: fan a sweep runs first (fan_selection.COVERAGE_LEVELS[0], the first coarse tables' points,
-        #: config/tables_1k2),
+        #: fan a sweep runs first (fan_selection.COVERAGE_LEVELS[0], the first coarse tables' points, config/tables_1k2),
         #: left out while a complete table exists: they rank only part of the fan and would
         #: confine the choice to it (tables swept ring by ring from the lowest height before
         #: 2026-12-06 hold the low corner)
@@ -85,9 +84,8 @@ class TableSelector:
         raw = "failed there" if math.isnan(c.raw_loss) else f"{c.raw_loss * 1e3:.1f} mm"
         note = (f"fan point {c.point} from {', '.join(f'{n} (d={d:.2f})' for n, d in zip(c.scenarios, c.distances))}; "
                 f"smoothed loss {c.expected_loss * 1e3:.1f} mm, simulated {raw}; "
-                f"table {t.directory or self.origin[t.name] / t.name}, "
-                f"max_area {t.provenance.get('resolution', {}).get('max_area_m2')} m^2, "
-                f"{len(t.point)} fan points{'' if t.complete else ' (incomplete)'}")
+                f"table {t.directory or self.origin[t.name] / t.name}, max_area {t.provenance.get('resolution', {}).get('max_area_m2')} "
+                f"m^2, {len(t.point)} fan points{'' if t.complete else ' (incomplete)'}")
         if t.fold_type != feats["fold_type"]:  # nearest neighbour across fold types: say so
             kind = fold_type(fold_name)
             own = any(u.fold_type == feats["fold_type"] and u.success.any() for u in self.choosable.values())

@@ -65,9 +65,7 @@ def _default_best(tables: Mapping[str, Table], held: str) -> tuple[int, str] | N
 
 #: name -> (rule, description). A rule maps (tables, held-out name) to (fan point, source).
 RULES: dict[str, tuple[Rule, str]] = {
-    "robust": (partial(_nearest_tables, robust=True),
-               "robust rule (the planner's: neighbourhood-smoothed, nearest tables, ties within 0.5 mm to the fan's "
-               "middle)"),
+    "robust": (partial(_nearest_tables, robust=True), "robust rule (the planner's: neighbourhood-smoothed, nearest tables, ties within 0.5 mm to the fan's middle)"),
     "argmin": (partial(_nearest_tables, robust=False), "raw argmin of the nearest table"),
     "static": (_static, "one static trajectory: the middle of the fan"),
     "default_best": (_default_best, "the default table's best point everywhere"),
@@ -83,9 +81,7 @@ def evaluate(tables: Mapping[str, Table], rule: str = "robust", tie_margin: floa
         raise ValueError(f"unknown rule {rule!r} ({', '.join(RULES)})")
     if tie_margin is not None and rule != "robust":
         raise ValueError(f"tie_margin applies to the robust rule only, not {rule!r}")
-    # with a tie margin the rule is "robust" (checked above): its function with that margin
-    pick: Rule = (RULES[rule][0] if tie_margin is None
-                  else partial(_nearest_tables, robust=True, tie_margin=tie_margin))
+    pick = RULES[rule][0] if tie_margin is None else partial(RULES[rule][0], tie_margin=tie_margin)
     f = fan()
     rows = []
     for name, held in tables.items():
@@ -152,8 +148,7 @@ def report(rows: list[RegretRow], title: str = "regret") -> str:
 
 def summary(rows_by_rule: Mapping[str, list[RegretRow]]) -> str:
     """A Markdown table, one line per rule: mean and worst regret (mm) and success rate."""
-    lines = ["| rule | scenarios with a regret | mean regret mm | worst regret mm | "
-             "success (completed, <= 2 cm: the sleeve folds' threshold, on every fold) |",
+    lines = ["| rule | scenarios with a regret | mean regret mm | worst regret mm | success (completed, <= 2 cm: the sleeve folds' threshold, on every fold) |",
              "|---|---|---|---|---|"]
     for name, rows in rows_by_rule.items():
         good, n_eval = success_rate(rows)
@@ -169,8 +164,7 @@ def tie_margin_report(tables: Mapping[str, Table], margins_m: list[float]) -> st
     fan point it picks per held-out table (in the tables' order)."""
     names = list(tables)
     lines = [f"robust rule by tie margin (held out in order: {', '.join(names)})", "",
-             "| tie margin mm | mean regret mm | worst regret mm | success | fan points picked |",
-             "|---|---|---|---|---|"]
+             "| tie margin mm | mean regret mm | worst regret mm | success | fan points picked |", "|---|---|---|---|---|"]
     for m in margins_m:
         rows = evaluate(tables, "robust", tie_margin=m)
         ok, n = success_rate(rows)

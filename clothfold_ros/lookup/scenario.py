@@ -6,12 +6,12 @@ describes a scenario when its table is built and the current shirt at run time.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Mapping
 
 import numpy as np
 
-from ..folding import FOLD_KINDS, FOLD_NAMES, FOLDS, FoldSpec, fold_spec, fold_type
+from ..folding import FOLD_KINDS, FOLD_NAMES, FOLDS, fold_spec, fold_type
 from ..garment import SHAPES, shirt_outline, KEYPOINT_NAMES
 from ..materials import MATERIALS, material
 
@@ -156,7 +156,7 @@ def grip_distance(spec) -> float:
 
 def spec_for(fold_name: str, keypoints: Mapping[str, np.ndarray],
              fallback_keypoints: Mapping[str, np.ndarray] | None = None,
-             end_angle_deg: float = 175.0) -> tuple[FoldSpec, str]:
+             end_angle_deg: float = 175.0) -> tuple[object, str]:
     """(FoldSpec, note) from `keypoints`; if they give no valid fold (e.g. coinciding
     hem corners after the side folds) and `fallback_keypoints` (the flat shirt's) are
     given, the spec comes from those and the note says why. Otherwise the error is raised."""

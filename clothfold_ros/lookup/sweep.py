@@ -13,7 +13,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Generator, Iterable
+from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
@@ -212,7 +212,7 @@ def finish(d: str | Path, command: str, points: list[int]) -> Path:
     return table
 
 
-def _local(jobs: list[Job], workers: int) -> Generator[tuple[dict, np.ndarray | None], None, None]:
+def _local(jobs: list[Job], workers: int) -> Iterator[tuple[dict, np.ndarray | None]]:
     if workers <= 1:
         for j in jobs:
             yield run_job(j)
@@ -232,7 +232,7 @@ def _local(jobs: list[Job], workers: int) -> Generator[tuple[dict, np.ndarray | 
     pool.shutdown()
 
 
-def _ray(jobs: list[Job], address: str, workers: int) -> Generator[tuple[dict, np.ndarray | None], None, None]:
+def _ray(jobs: list[Job], address: str, workers: int) -> Iterator[tuple[dict, np.ndarray | None]]:
     import ray
 
     if not ray.is_initialized():

@@ -28,7 +28,6 @@ import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -240,7 +239,7 @@ def pack_finals(d: str | Path, triangles: np.ndarray, start: np.ndarray, target:
     `points` that has one) and remove those points' per-run files (only those: a run logged
     after `points` was read keeps its own)."""
     d = Path(d)
-    arrays: dict[str, Any] = {"triangles": np.asarray(triangles).astype(np.int32), "start": np.asarray(start, dtype=np.float32),
+    arrays = {"triangles": np.asarray(triangles).astype(np.int32), "start": np.asarray(start, dtype=np.float32),
               "target": np.asarray(target, dtype=np.float32)}
     for p in sorted(points):
         try:

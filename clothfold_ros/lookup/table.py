@@ -158,18 +158,17 @@ def load_table(table_dir: str | Path) -> Table:
         point = np.array([int(r["point"]) for r in rows])
         h = np.array([float(r["height_ratio"]) for r in rows])
         tilt = np.array([float(r["tilt_deg"]) for r in rows])
-        hp = fan()  # (h, tilt) of each fan point
-        if point.min() < 0 or point.max() >= len(hp):
-            outside = sorted(set(point[(point < 0) | (point >= len(hp))]))
-            raise ValueError(f"fan point outside 0..{len(hp) - 1}: {outside}")
+        f = fan()
+        if point.min() < 0 or point.max() >= len(f):
+            raise ValueError(f"fan point outside 0..{len(f) - 1}: {sorted(set(point[(point < 0) | (point >= len(f))]))}")
         dup = sorted(p for p, n in Counter(point.tolist()).items() if n > 1)
         if dup:
             raise ValueError(f"fan point(s) listed twice: {dup}")
-        off = ~(np.isclose(h, hp[point, 0], atol=1e-4) & np.isclose(tilt, hp[point, 1], atol=1e-3))
+        off = ~(np.isclose(h, f[point, 0], atol=1e-4) & np.isclose(tilt, f[point, 1], atol=1e-3))
         if off.any():
             k = int(np.flatnonzero(off)[0])
             raise ValueError(f"fan point {point[k]} has (h, tilt) ({h[k]:g}, {tilt[k]:g}); the fan's is "
-                             f"({hp[point[k], 0]:g}, {hp[point[k], 1]:g})")
+                             f"({f[point[k], 0]:g}, {f[point[k], 1]:g})")
         flags = [r["success"] for r in rows]
         if set(flags) - {"0", "1"}:
             raise ValueError(f"success must be 0 or 1, not {sorted(set(flags) - {'0', '1'})}")

@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, fields, replace
-from typing import Any, Sequence, cast
+from typing import Sequence
 
 import numpy as np
 
@@ -96,8 +96,8 @@ class PoorFitError(PerceptionError):
 class EstimatorConfig:
     """pixel: top-view raster size (m); min_height/max_height: cloth height band (m above the
     table); max_invalid_fraction: refuse clouds with more non-finite points; min_points,
-    min_area (m^2): less is 'no cloth', a blob over max_area (m^2) is the table; blob_fraction: a second
-    blob at least this fraction of the largest is 'two blobs'; contour_points: outline points fitted; max_residual (m);
+    min_area (m^2): less is 'no cloth', a blob over max_area (m^2) is the table; blob_fraction: a second blob at least this fraction
+    of the largest is 'two blobs'; contour_points: outline points fitted; max_residual (m);
     max_nfev: function evaluations per fit; tolerance: least_squares
     ftol = xtol = gtol; spacing: model outline sample spacing (m); max_starts: fits tried
     from the best-ranked starts until one's residual is under good_enough x max_residual."""
@@ -122,14 +122,12 @@ class EstimatorConfig:
         positive = ("pixel", "max_residual", "tolerance", "spacing", "max_area")
         bad = [k for k in positive if not (math.isfinite(getattr(self, k)) and getattr(self, k) > 0)]
         bad += [k for k in ("min_points", "max_nfev", "max_starts") if not getattr(self, k) >= 1]
-        bad += [k for k in ("max_invalid_fraction", "blob_fraction", "good_enough")
-                if not 0.0 <= getattr(self, k) <= 1.0]
+        bad += [k for k in ("max_invalid_fraction", "blob_fraction", "good_enough") if not 0.0 <= getattr(self, k) <= 1.0]
         if not self.contour_points >= 3:
             bad.append("contour_points")
         if not (math.isfinite(self.min_area) and 0.0 <= self.min_area < self.max_area):
             bad.append("min_area")
-        if not (math.isfinite(self.min_height) and math.isfinite(self.max_height)
-                and self.min_height < self.max_height):
+        if not (math.isfinite(self.min_height) and math.isfinite(self.max_height) and self.min_height < self.max_height):
             bad.append("min_height/max_height")
         if bad:
             raise ValueError(f"EstimatorConfig: bad {', '.join(bad)} ({self})")
@@ -236,8 +234,7 @@ def top_view(cloth: np.ndarray, config: EstimatorConfig = EstimatorConfig()) -> 
         raise NoClothError(f"largest blob is {areas[order[0]]:.3f} m^2 (a shirt needs >= {config.min_area:g} m^2)")
     if areas[order[0]] > config.max_area:
         raise NoClothError(f"largest blob is {areas[order[0]]:.2f} m^2, more than any shirt (max_area "
-                           f"{config.max_area:g} m^2): the table is not separated from the cloth (drop its points: "
-                           "table_color for an RGB-D cloud, or a "
+                           f"{config.max_area:g} m^2): the table is not separated from the cloth (drop its points: table_color for an RGB-D cloud, or a "
                            "mask upstream; a height band only works for cloth thicker than the depth noise)")
     if len(order) > 1 and areas[order[1]] >= config.blob_fraction * areas[order[0]]:
         raise MultipleBlobsError(f"{int(np.sum(areas >= config.blob_fraction * areas[order[0]]))} separate blobs "
@@ -283,7 +280,7 @@ class _Params:
 def model_outline(shape_values: np.ndarray) -> np.ndarray:
     """(13, 2) outline (m, shirt frame: centred, +y to the neck) of shape parameters in
     SHAPE_FIELDS order (unvalidated)."""
-    s = cast(ShirtShape, _Params(shape_values))  # duck-typed (see _Params)
+    s = _Params(shape_values)
     return (_outline_unit(s) - np.array([0.0, 0.5])) * s.scale
 
 
@@ -567,7 +564,7 @@ def estimate_keypoints(points: np.ndarray, folds: Sequence[str | FoldSpec | Fold
         if n_f:
             f0[-1, 1] = offset
         fold_starts.append(f0)
-    starts: list[tuple[float, int, Any, np.ndarray, np.ndarray]] = []  # (cost, order, shape, pose, folds)
+    starts = []
     for shape0 in shapes:
         coarse = _Model(shape0, names, False, spacing=0.03, fixed=fixed)
         if pose_prior is not None:

@@ -89,7 +89,7 @@ def estimate_state(points: np.ndarray, folds: Sequence[str], prior: KeypointEsti
             tiers[1].append(("prior shape", folds, {"shape_prior": prior.shape, "pose_prior": prior.pose}))
     if failed is not None:
         tiers[0].append(("failed fold", folds + [failed], from_prior))
-    last_resort: list[tuple[str, list[str], dict]] = [("flat again", [], {})] if folds else []
+    last_resort = [("flat again", [], {})] if folds else []
 
     tried: list[str] = []
     warnings: list[str] = []

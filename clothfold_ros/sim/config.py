@@ -125,8 +125,8 @@ def _real(cfg: SimConfig, name: str, low: float | None, high: float | None, *, l
 def _integer(cfg: SimConfig, name: str, low: int, high: int | None = None) -> None:
     """Field `name` is an integer (not a bool) in low..high."""
     value = getattr(cfg, name)
-    if (not isinstance(value, numbers.Integral) or isinstance(value, bool) or int(value) < low
-            or (high is not None and int(value) > high)):
+    if (not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < low
+            or (high is not None and value > high)):
         most = "" if high is None else f" and <= {high}"
         raise ValueError(f"{name} must be >= {low}{most} (an integer), got {value!r}")
 

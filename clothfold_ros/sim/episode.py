@@ -49,7 +49,7 @@ class FoldEpisode:
         self.failure: str | None = None
         self._wall = 0.0
 
-    def _run(self, poses: dict[int, Pose] | None) -> StepStats:
+    def _run(self, poses: dict[int, Pose] | None) -> StepStats | None:
         if self.failure is not None:
             raise SimulationFailure(self.failure)
         tic = time.perf_counter()
@@ -87,7 +87,7 @@ class FoldEpisode:
         ok = self.failure is None
         return FoldOutcome(
             success=ok,
-            reason="" if self.failure is None else self.failure,
+            reason="" if ok else self.failure,
             loss=mean_vertex_distance(self.sim.x, self.target) if ok else float("nan"),
             vertices=self.sim.x.copy(),
             target=self.target,

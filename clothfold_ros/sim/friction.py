@@ -54,8 +54,7 @@ def table_normal_forces(z: np.ndarray, stiffness: float, xi: float, dhat: float)
     z = np.asarray(z, dtype=float)
     near = np.flatnonzero((z > xi) & (z < xi + dhat))
     zn = z[near]
-    return near, -2.0 * zn * stiffness * clamped_log_barrier_derivative(zn * zn - xi * xi,
-                                                                         2.0 * xi * dhat + dhat * dhat)
+    return near, -2.0 * zn * stiffness * clamped_log_barrier_derivative(zn * zn - xi * xi, 2.0 * xi * dhat + dhat * dhat)
 
 
 def _stencil_ids(name: str, group, edges: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -199,8 +198,8 @@ def _derivatives(u, ids, P, c, eps, order):
                 pk1 = P[i, 1, k]
                 if pk0 == 0.0 and pk1 == 0.0:
                     continue
-                for j in range(12):
-                    hess[i, k, j] = pk0 * w[0, j] + pk1 * w[1, j]
+                for l in range(12):
+                    hess[i, k, l] = pk0 * w[0, l] + pk1 * w[1, l]
     return energy, grads, hess
 
 
@@ -218,8 +217,8 @@ def _hessians(u, ids, P, c, eps, tau_prev, damped):
             y = np.sqrt(t0 * t0 + t1 * t1)
             s = c[i] * ((2.0 / eps - y / (eps * eps)) if y < eps else 1.0 / y)
             for k in range(12):
-                for j in range(12):
-                    hess[i, k, j] = s * (P[i, 0, k] * P[i, 0, j] + P[i, 1, k] * P[i, 1, j])
+                for l in range(12):
+                    hess[i, k, l] = s * (P[i, 0, k] * P[i, 0, l] + P[i, 1, k] * P[i, 1, l])
     return hess
 
 

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import ctypes
 import os
-from typing import overload
 
 import numba as nb
 import numpy as np
@@ -130,9 +129,7 @@ class _Handle:
         self.threads = threads
         self.analysed = False
         self.n = self.block = 0
-        self.indptr: np.ndarray | None = None  # the pattern (set_pattern)
-        self.indices: np.ndarray | None = None
-        self.perm: np.ndarray | None = None
+        self.indptr = self.indices = self.perm = None
 
     def set_pattern(self, indptr: np.ndarray, indices: np.ndarray, block: int, threads: int | None = None) -> None:
         """A new pattern (analysed at the next factorization), solved on `threads` (None: as set)."""
@@ -145,12 +142,6 @@ class _Handle:
         self.iparm[36] = block if block > 1 else 0  # BSR with this block size
         self.perm = np.zeros(self.n, dtype=np.int32)
 
-    @overload
-    def call(self, phase: int, data: np.ndarray, rhs: None = None) -> None: ...
-
-    @overload
-    def call(self, phase: int, data: np.ndarray, rhs: np.ndarray) -> np.ndarray: ...
-
     def call(self, phase: int, data: np.ndarray, rhs: np.ndarray | None = None) -> np.ndarray | None:
         size = self.n * self.block
         b = np.zeros(size, dtype=self.dtype) if rhs is None else np.ascontiguousarray(rhs, dtype=self.dtype)
@@ -158,7 +149,6 @@ class _Handle:
             raise ValueError(f"right-hand side must have {size} entries, got {b.shape}")
         x = np.zeros(size, dtype=self.dtype)
         err = ctypes.c_int32(0)
-        assert self.indptr is not None and self.indices is not None and self.perm is not None, "no pattern set"
         previous = self._mkl.MKL_Set_Num_Threads_Local(self.threads)
         try:  # pointers are passed untyped: float32 arrays go through the double* argtype
             self._pardiso(
@@ -231,11 +221,9 @@ class PardisoSPD:
         order = self.ORDERINGS[ordering]
         self._double = _Handle(self._lib, order, refinement_steps, self.threads, single=False)
         self._single = _Handle(self._lib, order, 0, self.threads, single=True) if precision == "mixed" else None
-        self._indptr: np.ndarray | None = None  # the pattern (set_pattern)
-        self._indices: np.ndarray | None = None
+        self._indptr = self._indices = None
         self._block = 1
-        self._data: np.ndarray | None = None  # the values factorized last, in double and single precision
-        self._data32: np.ndarray | None = None
+        self._data = self._data32 = None
         self._use_single = False  # the current values are factorized in single precision
         self.analyses = 0  # symbolic analyses run (for statistics)
         self.fallbacks = 0  # systems factorized in double precision because mixed precision failed
@@ -267,14 +255,11 @@ class PardisoSPD:
         self._factor_double()
 
     def _factor_double(self) -> None:
-        assert self._data is not None, "factor() first"
         self.analyses += self._double.factor(self._data)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        assert self._data is not None and self._indptr is not None and self._indices is not None, "factor() first"
         if not self._use_single:
             return self._double.call(33, self._data, rhs)
-        assert self._single is not None and self._data32 is not None  # _use_single: factorized in single
         b = np.ascontiguousarray(rhs, dtype=float)
         x = self._single.call(33, self._data32, b).astype(float)  # validates the size
         bound = self.tolerance * float(np.linalg.norm(b))
@@ -320,9 +305,8 @@ class ScipySPD:
     """Fallback with the same interface: SuperLU on the full symmetric matrix (slow)."""
 
     def __init__(self) -> None:
-        self._indptr: np.ndarray | None = None
-        self._indices: np.ndarray | None = None
-        self._lu: spla.SuperLU | None = None
+        self._indptr = self._indices = None
+        self._lu = None
         self.analyses = 0
         self.fallbacks = 0  # interface parity with PardisoSPD (SuperLU factorizes in double)
 
@@ -330,7 +314,6 @@ class ScipySPD:
         self._indptr, self._indices, self._block = indptr, indices, int(block)
 
     def factor(self, data: np.ndarray) -> None:
-        assert self._indptr is not None, "set_pattern() first"
         b = self._block
         n = (len(self._indptr) - 1) * b
         blocks = sp.bsr_matrix((np.asarray(data).reshape(-1, b, b), self._indices, self._indptr), shape=(n, n))
@@ -340,7 +323,6 @@ class ScipySPD:
         self.analyses += 1
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        assert self._lu is not None, "factor() first"
         return self._lu.solve(np.asarray(rhs, dtype=float))
 
 

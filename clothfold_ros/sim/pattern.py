@@ -305,7 +305,6 @@ class HessianPattern:
 
     def _neighbour_keys(self, keys: np.ndarray) -> np.ndarray:
         """Upper block keys of every vertex pair (a', b'), a' near a, b' near b, for the pairs in keys."""
-        assert self._rings is not None, "only with growth rings"
         nv = self.nv
         pairs = sp.csr_matrix((np.ones(len(keys)), (keys // nv, keys % nv)), shape=(nv, nv))
         grown = (self._rings @ pairs @ self._rings.T).tocoo()

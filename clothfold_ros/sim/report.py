@@ -52,8 +52,7 @@ def plot_top_down(vertices: np.ndarray, target: np.ndarray, triangles: np.ndarra
     top = 1000 * max(float(np.max(vertices[:, 2])), float(np.max(target[:, 2])))  # one colour scale for both
     for ax, verts, name in ((axes[0], vertices, "simulated"), (axes[1], target, "target")):
         order = np.argsort(verts[triangles].mean(axis=1)[:, 2])  # draw higher triangles last
-        tpc = ax.tripcolor(verts[:, 0], verts[:, 1], triangles[order],
-                           facecolors=verts[triangles[order]].mean(axis=1)[:, 2] * 1000,
+        tpc = ax.tripcolor(verts[:, 0], verts[:, 1], triangles[order], facecolors=verts[triangles[order]].mean(axis=1)[:, 2] * 1000,
                            cmap="viridis", edgecolors="none", vmin=0.0, vmax=top)
         ax.set_title(name)
         ax.set_aspect("equal")

@@ -63,8 +63,7 @@ def run_sequence(scene: Scene, choices: Mapping[str, tuple[float, float]], folds
 
 def stage_table(results: Sequence[StageResult]) -> str:
     """A Markdown table of the stages: fold, (h, tilt), loss or failure, steps, Newton its/step, wall."""
-    rows = ["| stage | fold | (h, tilt) | loss vs composed target | Newton its/step | wall |",
-            "|---|---|---|---|---|---|"]
+    rows = ["| stage | fold | (h, tilt) | loss vs composed target | Newton its/step | wall |", "|---|---|---|---|---|---|"]
     for i, r in enumerate(results):
         o = r.outcome
         loss = f"{o.loss * 1000:.1f} mm" if o.success else f"FAILED: {o.reason}"

@@ -15,6 +15,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..arrays import finite_array
 from ..materials import Material
@@ -110,11 +111,11 @@ class ClothSimulator:
         self._hinge_dofs = element_dofs(self._hinges)
         self._pattern = HessianPattern(self.ndof, [self._tri_dofs, self._hinge_dofs], tri, cfg.pattern_growth_rings,
                                        cfg.pattern_keep_solves, cfg.pattern_prune_fraction)
-        self._pattern_version: int | tuple[int, int] = -1  # pattern version the solver has analysed
+        self._pattern_version = -1  # pattern version the solver has analysed
         self.fallback_directions = 0  # Newton steps that fell back to the scaled gradient
         self.regularized_solves = 0  # factorizations retried with a diagonal shift
         self.subspace_solves = 0  # Newton directions solved on the moving vertices only
-        self._friction_key: tuple[int, int] | None = None  # (friction contacts, pattern version) of _friction_cache
+        self._friction_key = None  # (friction contacts, pattern version) of _friction_cache
         self._friction_cache = np.zeros((0, 4, 4), dtype=np.int64)
         xi = material.thickness if cfg.xi is None else cfg.xi
         dhat = material.thickness if cfg.dhat is None else cfg.dhat
@@ -125,13 +126,10 @@ class ClothSimulator:
 
         self._solver = spd_solver(cfg.linear_solver, cfg.solver_threads, cfg.linear_precision)
         self._sub_solver = spd_solver(cfg.linear_solver, cfg.solver_threads, cfg.linear_precision)
-        self._sub_analysed: Subsystem | None = None  # the subsystem whose pattern the subspace solver holds
-        # the subsystem whose element subset is cached, that subset
-        self._elements_of: Subsystem | None = None
-        self._elements: ElementSubset | None = None
+        self._sub_analysed = None  # the subsystem whose pattern the subspace solver holds
+        self._elements_of, self._elements = None, None  # the subsystem whose element subset is cached, that subset
         self._project = membrane.PROJECT_ABS if cfg.psd_projection == "abs" else membrane.PROJECT_CLAMP
-        self.contact.psd = (ipctk.PSDProjectionMethod.ABS if cfg.psd_projection == "abs"
-                            else ipctk.PSDProjectionMethod.CLAMP)
+        self.contact.psd = ipctk.PSDProjectionMethod.ABS if cfg.psd_projection == "abs" else ipctk.PSDProjectionMethod.CLAMP
 
         if self.contact.intersects(self.x):
             raise ValueError("initial cloth state intersects itself or the table")
@@ -187,8 +185,7 @@ class ClothSimulator:
         return g, [hm, hb]
 
     def _elastic_energy(self, x: np.ndarray) -> float:
-        return membrane.membrane_energy(x, self.triangles, self._shape, self._volume, self._lame_lambda,
-                                        self._lame_mu) + \
+        return membrane.membrane_energy(x, self.triangles, self._shape, self._volume, self._lame_lambda, self._lame_mu) + \
             bending.bending_energy(x, self._hinges, self._theta_rest, self._hinge_weight, self._k_bend)
 
     def _energy(self, x, x_hat, x_prev, col, pull=None) -> float:
@@ -360,7 +357,6 @@ class ClothSimulator:
         if self._elements_of is not sub:
             self._elements = element_subset(sub.active, self.triangles, self._hinges, self._pattern.block_slots)
             self._elements_of = sub
-        assert self._elements is not None  # set with _elements_of, which is `sub` here
         return self._elements
 
     def _subsystem(self, p: np.ndarray) -> Subsystem | None:
@@ -377,7 +373,6 @@ class ClothSimulator:
                       when: str) -> np.ndarray:
         """Solve the diagonally scaled system, retrying a factorization that breaks down
         with `SimConfig.regularization_shifts` (times the unit diagonal) added."""
-        previous = 0.0  # the shift of the last failed try (read only after one failed)
         for shift in (0.0, *self.config.regularization_shifts):
             try:
                 if shift:  # diag(A) * shift added: the factorization failed on the matrix itself
@@ -497,9 +492,9 @@ class ClothSimulator:
                     (cfg.force_tol is None or self._force_residual(grad, free) <= cfg.force_tol):
                 return x, it, halvings, residual, col  # it > 1: the first iterate is never taken as it is (module doc)
             try:
-                x_new, col_t, n_halved, energy = self._line_search(
-                    x, p, grad, x_hat, x_prev, col, pull, phases, when,
-                    f"Newton iteration {it}, residual {residual:.3g} m/s", energy)
+                x_new, col_t, n_halved, energy = self._line_search(x, p, grad, x_hat, x_prev, col, pull, phases, when,
+                                                                   f"Newton iteration {it}, residual {residual:.3g} m/s",
+                                                                   energy)
             except SimulationFailure:
                 if full_direction and residual <= cfg.newton_tol:  # a step below the tolerance that rounding
                     return x, it, halvings, residual, col  # keeps from lowering the potential: x is converged
