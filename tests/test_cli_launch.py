@@ -21,7 +21,7 @@ def started(monkeypatch):
         calls.append((name, list(cmd), Path(cwd or work_dir())))
 
     monkeypatch.setattr(launcher_mod.Launcher, "start", start)
-    monkeypatch.setattr(launcher_mod, "run_until_interrupted", lambda launcher: 0)
+    monkeypatch.setattr(launcher_mod, "run_until_interrupted", lambda launcher, signals=None: 0)
     return calls
 
 

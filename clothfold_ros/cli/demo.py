@@ -5,8 +5,9 @@ fold_planner_node, trajectory_node) as their own processes on a private ROS doma
 localhost-only discovery, plans and executes the default shirt's left sleeve (or, with
 --sequence, left sleeve, right sleeve, left side, right side, middle, re-planning each
 stage from the keypoints of the cloth as it is then), prints each loss and the bag path,
-and stops every process (the recorder with SIGINT, so the bag is complete). SIGINT (Ctrl-C)
-or SIGTERM to the demo stop every process it started and close the bag the same way; a
+and stops every process (the recorder with SIGINT, so the bag is complete). SIGINT (Ctrl-C, also
+when started in the background of a script) or SIGTERM to the demo stop every process it started
+and close the bag the same way (exit status 130 / 143); a
 node that exits during a fold (e.g. a killed backend) ends the demo at once with a failure.
 Relative --bags paths are below the checkout when run from source, else the current directory.
 """
@@ -15,7 +16,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import signal
 import sys
 import time
 from pathlib import Path
@@ -53,13 +53,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _terminate(signum, _frame) -> None:
-    raise KeyboardInterrupt(signal.Signals(signum).name)
-
-
 def run(args: argparse.Namespace) -> int:
     from ..nodes.resources import DEFAULT_PARAMS, work_dir
-    from .launcher import Launcher, node_command
+    from .launcher import Launcher, StopSignals, node_command
 
     # checked before anything is started or created: one line, exit code 2
     if not (math.isfinite(args.timeout) and args.timeout > 0):
@@ -69,9 +65,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"clothfold demo: --domain-id must be in 0..232, got {args.domain_id}", file=sys.stderr)
         return 2
     tic = time.monotonic()
-    old_term = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM: the same clean stop as Ctrl-C
-    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:  # started with '&' from a script: SIGINT
-        signal.signal(signal.SIGINT, signal.default_int_handler)  # was inherited ignored; Ctrl-C/kill -INT stop us
+    # SIGTERM: the same clean stop as Ctrl-C; SIGINT also when started with '&' from a script (inherited
+    # ignored); exit status 130 / 143
+    signals = StopSignals().install()
     folds = list(FOLD_SEQUENCE) if args.sequence else [args.fold]
     name = args.name or time.strftime("demo-%Y%m%d-%H%M%S")
     bags = args.bags if args.bags.is_absolute() else work_dir() / args.bags
@@ -140,24 +136,22 @@ def run(args: argparse.Namespace) -> int:
             for p in launcher.procs:
                 for line in p.lines[-4:]:
                     print(f"[demo]   {p.name}: {line}", file=sys.stderr, flush=True)
-    except KeyboardInterrupt as sig:
-        print(f"[demo] interrupted ({sig or 'SIGINT'}): stopping every process", file=sys.stderr, flush=True)
-        code = 130
+    except KeyboardInterrupt:
+        print(f"[demo] interrupted ({signals.name}): stopping every process", file=sys.stderr, flush=True)
+        code = signals.exit_code(130)
     finally:
         # a second Ctrl-C / SIGTERM must not cut the clean-up short (every stop below is bounded)
-        old_int = signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        signals.ignore()
         closed = None
         try:
             if recorder is not None:
-                if recorder.alive() and code != 130:
+                if recorder.alive() and not signals.received:
                     time.sleep(1.0)  # let the recorder write what is in flight (the last result)
                 launcher.stop(recorder, timeout=30)
                 closed = next((ln for ln in recorder.lines if "bag closed" in ln), None)
             launcher.stop_all()
         finally:
-            signal.signal(signal.SIGINT, old_int)
-            signal.signal(signal.SIGTERM, old_term)
+            signals.restore()
     print("[demo] ---", flush=True)
     for o in outcomes:
         print(f"[demo] {o.fold}: {loss_text(o.loss, o.success)} {'ok' if o.success else 'FAILED ' + o.reason}",

@@ -6,7 +6,7 @@ Joins the current ROS_DOMAIN_ID, waits for keypoints, then plans and executes ea
 stamped after that result (the cloth as it lies now). Stops at the first refused or failed fold.
 Every fold that ended is listed at the end, also when a later one times out or the command is
 interrupted. Exit code 0 when every fold succeeded, 1 otherwise, 2 on bad arguments, 130 on
-Ctrl-C. Starts nothing: start the nodes first (`clothfold launch`, `ros2 launch clothfold_ros
+SIGINT (Ctrl-C; also when started in the background of a script), 143 on SIGTERM. Starts nothing: start the nodes first (`clothfold launch`, `ros2 launch clothfold_ros
 clothfold.launch.py`).
 """
 from __future__ import annotations
@@ -55,9 +55,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"clothfold fold: {err}", file=sys.stderr)
         return 2
     from ..nodes.pipeline_client import PipelineClient, loss_text
+    from .launcher import StopSignals
 
     outcomes: list = []  # StageOutcome of each fold that ended, kept when a later stage raises
     interrupted = False
+    signals = StopSignals().install()  # SIGINT also when started with '&' from a script; SIGTERM the same
     try:
         with PipelineClient("clothfold_fold") as client:
             try:
@@ -70,10 +72,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"clothfold fold: {err}", file=sys.stderr)
     except KeyboardInterrupt:
         interrupted = True
-        print("clothfold fold: interrupted (the fold under way, if any, goes on; its result is not awaited)",
-              file=sys.stderr)
+        print(f"clothfold fold: interrupted ({signals.name}; the fold under way, if any, goes on; its result is "
+              "not awaited)", file=sys.stderr)
+    finally:
+        signals.restore()
     for o in outcomes:
         print(f"{o.fold}: {loss_text(o.loss, o.success)} {'ok' if o.success else 'FAILED ' + o.reason}", flush=True)
     if interrupted:
-        return 130
+        return signals.exit_code(130)
     return 0 if len(outcomes) == len(folds) and all(o.success for o in outcomes) else 1

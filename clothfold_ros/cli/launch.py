@@ -1,5 +1,6 @@
 """`clothfold launch [--backend NAME]`: every pipeline node as its own process
-(the pure-Python equivalent of launch/clothfold.launch.py); Ctrl-C stops them all."""
+(the pure-Python equivalent of launch/clothfold.launch.py); SIGINT (Ctrl-C, also when started in the
+background of a script) or SIGTERM stops them all, exit status 130 / 143; 1 when a node exited by itself."""
 from __future__ import annotations
 
 import argparse
@@ -40,7 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from .launcher import Launcher, node_command, pipeline_nodes, run_until_interrupted
+    from .launcher import Launcher, StopSignals, node_command, pipeline_nodes, run_until_interrupted
 
     # The nodes run in the checkout (Launcher.start), not here: paths given relative to the
     # caller's directory are made absolute before they reach a node's command line.
@@ -57,12 +58,22 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as err:
         print(f"clothfold launch: {err}", file=sys.stderr)
         return 2
+    # SIGINT (also when started with '&' from a script, which starts it ignored) and SIGTERM stop every
+    # process: exit status 130 / 143
+    signals = StopSignals().install()
     try:
-        launcher.start_pipeline(args.backend, params_file, overrides, perception=args.perception)
-        if record is not None:
-            launcher.start("recorder_node", node_command("recorder_node", args=["--output", str(record)]))
-    except BaseException:
-        launcher.stop_all()
-        raise
-    print(f"[launcher] started {len(launcher.procs)} processes; Ctrl-C stops them", flush=True)
-    return run_until_interrupted(launcher)
+        try:
+            launcher.start_pipeline(args.backend, params_file, overrides, perception=args.perception)
+            if record is not None:
+                launcher.start("recorder_node", node_command("recorder_node", args=["--output", str(record)]))
+        except BaseException as err:
+            signals.ignore()
+            launcher.stop_all()
+            if isinstance(err, KeyboardInterrupt):
+                return signals.exit_code(130)
+            raise
+        print(f"[launcher] started {len(launcher.procs)} processes ("
+              + ", ".join(f"{p.name} pid {p.pid}" for p in launcher.procs) + "); Ctrl-C stops them", flush=True)
+        return run_until_interrupted(launcher, signals)
+    finally:
+        signals.restore()

@@ -227,23 +227,73 @@ class Launcher:
         self.stop_all()
 
 
-def run_until_interrupted(launcher: Launcher) -> int:
-    """Block until Ctrl-C/SIGTERM or until a process exits; then stop everything."""
-    stop = threading.Event()
-    old = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+class StopSignals:
+    """SIGINT and SIGTERM of a command that starts or waits on processes (`launch`, `demo`, `fold`,
+    `run`): both raise KeyboardInterrupt in the main thread, and the first one received decides the
+    exit status, 128 + its number (130 for SIGINT, 143 for SIGTERM), as a shell reports a process
+    those signals killed.
+
+    `install` also undoes an inherited "SIGINT ignored": a non-interactive shell starts its
+    background jobs (`clothfold launch ... &` in a script) with SIGINT ignored, so `kill -INT` did
+    nothing; and processes started after it inherit the default disposition instead (a handler is
+    reset to the default across exec, an ignored signal stays ignored). `ignore` holds both signals
+    off while the command cleans up (every stop in it is bounded), `restore` puts back what was there."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._old: dict[int, object] = {}
+
+    def install(self) -> "StopSignals":
+        for sig in self.SIGNALS:
+            old = signal.signal(sig, self._handler)
+            self._old.setdefault(sig, signal.default_int_handler if old == signal.SIG_IGN and sig == signal.SIGINT
+                                 else old)
+        return self
+
+    def _handler(self, signum: int, _frame) -> None:
+        if self.received is None:
+            self.received = signum
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    def ignore(self) -> None:
+        for sig in self.SIGNALS:
+            signal.signal(sig, signal.SIG_IGN)
+
+    def restore(self) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old if old is not None else signal.SIG_DFL)
+
+    @property
+    def name(self) -> str:
+        return signal.Signals(self.received).name if self.received else "SIGINT"
+
+    def exit_code(self, code: int) -> int:
+        """128 + the signal's number once one was received, else code."""
+        return 128 + int(self.received) if self.received else code
+
+
+def run_until_interrupted(launcher: Launcher, signals: StopSignals | None = None) -> int:
+    """Block until SIGINT/SIGTERM or until a process exits; then stop everything. Exit status 130
+    after SIGINT, 143 after SIGTERM (StopSignals), 1 when a process exited by itself."""
+    signals = signals or StopSignals().install()
     code = 0
     try:
-        while not stop.is_set():
+        while True:
             dead = [p for p in launcher.procs if not p.alive()]
             if dead:
                 print(f"[launcher] {dead[0].name} exited with code {dead[0].popen.returncode}; stopping all",
                       file=launcher.out, flush=True)
                 code = 1
                 break
-            stop.wait(0.2)
+            time.sleep(0.2)
     except KeyboardInterrupt:
-        pass
+        print(f"[launcher] {signals.name}: stopping every process", file=launcher.out, flush=True)
     finally:
-        signal.signal(signal.SIGTERM, old)
-        launcher.stop_all()
-    return code
+        signals.ignore()  # a second Ctrl-C must not cut the clean-up short (every stop in it is bounded)
+        try:
+            launcher.stop_all()
+        finally:
+            signals.restore()
+    return signals.exit_code(code)

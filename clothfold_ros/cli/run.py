@@ -16,5 +16,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    module = importlib.import_module(f"clothfold_ros.nodes.{args.node}")
-    return int(module.main(list(args.args)) or 0)
+    """The node's exit code; 130 / 143 when SIGINT / SIGTERM stopped it (SIGINT also when started in
+    the background of a script, which starts it ignored)."""
+    from .launcher import StopSignals
+
+    signals = StopSignals().install()  # rclpy.init installs its own on top and calls these after its shutdown
+    try:
+        module = importlib.import_module(f"clothfold_ros.nodes.{args.node}")
+        code = int(module.main(list(args.args)) or 0)
+    except KeyboardInterrupt:  # before or after the node's spin
+        code = 0
+    finally:
+        signals.restore()
+    return signals.exit_code(code)
