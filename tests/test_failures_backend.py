@@ -181,11 +181,14 @@ def test_targets_while_idle_are_dropped(rig):
 def _advance_to(r, t_ns: int) -> None:
     """Move the backend's clock to t_ns the way a fold cancelled before its start does (announced,
     close and open at its start, no target): the clock runs to it and stands there."""
+    before = len(r.results)
     _announce(r, t_ns, 1.0)
     time.sleep(0.2)
     _command(r, t_ns, 0.0)
     _command(r, t_ns, 0.08)
     _now(r, after_ns=t_ns - 1)
+    res = _result(r, before)  # the fold's failed result, at once
+    assert not res.success and "cancelled before it started" in res.reason, res.reason
 
 
 def test_the_idle_clock_stands_still_and_is_published_once_a_second(rig):
@@ -219,6 +222,29 @@ def test_a_close_that_arrives_before_its_announcement_waits_for_it(rig):
     _command(r, stamps[-1], 0.08)
     res = _result(r, before)
     assert res.success and res.steps == 25 and res.fold_name == "left_sleeve", (res.success, res.reason)
+
+
+def test_an_announcement_slow_in_transit_is_still_on_time(rig):
+    """The race of the flaky pipeline tests (test_failures_pipeline.py): trajectory_node stamps a fold
+    start_delay ahead of the clock as it reads it, and /fold/active takes its time to arrive on a
+    loaded machine. The idle clock used to run on meanwhile and pass the start: the announcement was
+    refused as too late and the fold never ran ("the backend did not step"). Idle, the clock now
+    stands still, so the announcement is on time however long it took."""
+    r = rig
+    now = max(_now(r), getattr(r, "streamed_until", 0))
+    t0 = (now // DT_NS + 13) * DT_NS  # 0.5 s of sim time ahead: 0.13 s of wall time at 4x
+    time.sleep(1.0)  # the announcement "in transit"
+    spec = _announce(r, t0, 1.0)
+    time.sleep(0.2)
+    _command(r, t0, 0.0)
+    stamps = [t0 + k * DT_NS for k in range(26)]
+    start = spec.start_poses[0].position
+    before = len(r.results)
+    _targets(r, stamps, [start + [0.002 * k, 0.0, 0.0] for k in range(26)])
+    r.streamed_until = stamps[-1]
+    _command(r, stamps[-1], 0.08)
+    res = _result(r, before)
+    assert res.success and res.steps == 25, (res.success, res.reason)
 
 
 def test_stray_close_does_not_hold_the_clock(rig):
@@ -292,13 +318,16 @@ def test_fold_cancelled_before_its_start_does_not_hold_the_clock(rig):
     pose; the backend drops the close and must not keep holding the clock at the announced start
     (this rig's stall_timeout is 600 s: a held clock fails the wait below)."""
     r = rig
-    t0 = (_now(r) // DT_NS + 25) * DT_NS  # 1 s of sim time ahead
+    t0 = (max(_now(r), getattr(r, "streamed_until", 0)) // DT_NS + 25) * DT_NS  # 1 s of sim time ahead
+    before = len(r.results)
     _announce(r, t0, 2.0)
     time.sleep(0.2)
     _command(r, t0, 0.0)
     _command(r, t0, 0.08)
     _now(r, after_ns=t0 - 1, timeout=15.0)
     _log(r, f"close at {t0 * 1e-9:.3f} s dropped: the fold was cancelled before it started")
+    res = _result(r, before)  # its sender hears of it at once (trajectory_node waited 5 s, then said so itself)
+    assert not res.success and res.fold_name == "left_sleeve" and "cancelled before it started" in res.reason
     ok = _fold(r, 1.0, 1.0)  # the clock runs on to the next fold's start
     assert ok.success and ok.steps == 25, (ok.success, ok.reason)
 

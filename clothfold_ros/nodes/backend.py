@@ -314,11 +314,18 @@ class LockStepBackend(Node):
                                         f"fold announced on {common.FOLD_ACTIVE} for it")
                         continue
                     if pose is None and not self.ls.closed and self._open_pending(cmd.gripper, cmd.stamp_ns):
-                        self.ls.pop_command()  # cancelled before it started: the open is already queued
+                        # cancelled before it started: the opens are already queued; the other grippers'
+                        # closes of that start go too, and the fold's sender hears of it at once
+                        self.ls.pending = [c for c in self.ls.pending if not (
+                            c.closed and abs(c.stamp_ns - cmd.stamp_ns) <= STAMP_TOLERANCE_NS
+                            and self._open_pending(c.gripper, c.stamp_ns))]
+                        why = (f"gripper_{cmd.gripper} close at {cmd.stamp_ns * 1e-9:.3f} s dropped: the fold was "
+                               "cancelled before it started")
+                        self.get_logger().warning(why)
+                        if self.announced is not None and self._fold_covers(cmd.stamp_ns):
+                            self.publish_result(False, why, math.nan, fold=self.announced)
                         self.announced = None
-                        self.ls.hold_until = None  # nothing to wait for: the clock runs on
-                        self.get_logger().warning(f"gripper_{cmd.gripper} close at {cmd.stamp_ns * 1e-9:.3f} s "
-                                                  "dropped: the fold was cancelled before it started")
+                        self.ls.hold_until = None  # nothing to wait for
                         continue
                     if pose is None:
                         return self._stalled(f"no target pose of gripper_{cmd.gripper} at its close time "

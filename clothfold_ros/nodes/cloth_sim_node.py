@@ -26,7 +26,6 @@ import time
 
 import numpy as np
 from clothfold_msgs.msg import ClothState
-from rclpy.qos import QoSProfile
 from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker

@@ -145,8 +145,16 @@ class PipelineClient:
         subscription; TimeoutError otherwise. /fold/result is volatile: a fold that ends before
         discovery pairs the backend with this client is a result lost (a kinematic backend at
         50x real time ends a fold within a second of the plan call)."""
-        if not wait_until(self.cond, lambda: self.result_sub.get_publisher_count() > 0 or None, timeout, poll=0.05):
-            raise TimeoutError(f"no {common.FOLD_RESULT} publisher (the backend) matched within {timeout:g} s")
+        if not wait_until(self.cond, lambda: self.backend_matched() or None, timeout, poll=0.05):
+            raise TimeoutError(f"no {common.FOLD_RESULT} publisher but trajectory_node's (no backend or robot driver "
+                               f"running?) matched within {timeout:g} s")
+
+    def backend_matched(self) -> bool:
+        """Whether a /fold/result publisher other than trajectory_node's (which publishes only the
+        failures it reports itself) is known, and every known one matched this client."""
+        infos = self.node.get_publishers_info_by_topic(common.FOLD_RESULT)
+        return any(i.node_name != "trajectory_node" for i in infos) and \
+            self.result_sub.get_publisher_count() >= len(infos)
 
     def _plan_once(self, fold_name: str, execute: bool, timeout: float) -> PlanFold.Response:
         if not self.plan_client.wait_for_service(timeout_sec=timeout):

@@ -132,6 +132,7 @@ class TrajectoryNode(Node):
         self.results_cv = threading.Condition()
         self._started = None  # (plan, t0 ns) of the fold under way
         self._failure: FoldResult | None = None  # the backend's failed result of the fold under way
+        self._streamed_until = 0  # stamp of the last target pose sent (ns)
         self.lock = threading.Lock()
         self.busy: str | None = None  # name of the running fold
         self.server = ActionServer(self, ExecuteFold, common.EXECUTE_FOLD, self.execute,
@@ -250,9 +251,14 @@ class TrajectoryNode(Node):
             with self.lock:
                 self.busy = None
 
-    def _report_failure(self, handle, reason: str) -> FoldResult:
+    def _report_failure(self, handle, reason: str, until_ns: int | None = None) -> FoldResult:
         """Make sure a failed /fold/result for this fold is published: the backend's (waited for
-        failure_report_wait s; it reports grippers that opened early) or else this node's own."""
+        failure_report_wait s; it reports grippers that opened early) or else this node's own.
+        until_ns: the stamp of the open command sent; the wait starts once the clock reached it (the
+        backend opens then: on a lock-step clock that is up to `lookahead` later), or once the clock
+        stood still for stall_timeout: one result per fold, never this node's and then the backend's."""
+        if until_ns is not None and params.value(self, "wait_for_result"):
+            self._wait_clock(until_ns, params.value(self, "stall_timeout"), handle, cancellable=False)
         if self._started is not None:
             plan, t0 = self._started
         else:
@@ -308,7 +314,13 @@ class TrajectoryNode(Node):
             if reason:
                 raise RuntimeError(f"no clock: {reason}")
         times, pos, quat = traj.sample(rate)
-        t0 = self.now_ns() + self._start_lead_ns()
+        # after every target sent before (a fold the backend failed leaves some stamped ahead of the clock):
+        # a late one of those must not land inside this fold's motion
+        # (bounded by the lookahead: a clock that went back, a sim reset, leaves no such targets)
+        now, period = self.now_ns(), rc.seconds_to_ns(1.0 / rate)
+        t0 = now + self._start_lead_ns()
+        if now < self._streamed_until <= now + ahead + period:
+            t0 = max(t0, self._streamed_until + period)
         stamps = [t0 + rc.seconds_to_ns(t) for t in times]
         poses = [[Pose(pos[k, g], quat[k, g]) for g in grippers] for k in range(len(times))]
         with self.results_cv:
@@ -337,6 +349,7 @@ class TrajectoryNode(Node):
             while k < len(stamps) and stamps[k] <= now + ahead:
                 for g in grippers:
                     self.pose_pubs[g].publish(rc.pose_stamped(poses[k][g], stamps[k]))
+                self._streamed_until = stamps[k]
                 k += 1
             if now != last:
                 last, since = now, time.monotonic()
@@ -355,7 +368,7 @@ class TrajectoryNode(Node):
         if cancelled:
             handle.canceled()
             log.warn(f"fold {spec.name} cancelled; grippers open at {t_open * 1e-9:.3f} s")
-            result = self._report_failure(handle, f"cancelled at {t_open * 1e-9:.3f} s")
+            result = self._report_failure(handle, f"cancelled at {t_open * 1e-9:.3f} s", until_ns=t_open)
             return ExecuteFold.Result(success=False, message="cancelled", result=result)
         # every target and the open command are sent: the backend runs the fold to its end and
         # reports it, so a cancel from here on cannot stop it (it would only add a failed result)
