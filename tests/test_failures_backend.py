@@ -155,16 +155,21 @@ def _fold(r, duration: float, open_after: float, jump_at: int | None = None) -> 
     spec = _announce(r, t0, duration)
     time.sleep(0.2)  # the announcement before the commands (different topics)
     _command(r, t0, 0.0)
-    n = round(duration / 0.04)
-    stamps = [t0 + k * DT_NS for k in range(n + 1)]
+    return _stream(r, spec, t0, round(duration / 0.04), round(open_after / 0.04), jump_at)
+
+
+def _stream(r, spec, t0: int, steps: int, open_step: int, jump_at: int | None = None) -> object:
+    """Stream a slow straight line of steps + 1 targets every dt from the spec's start at t0
+    (position x = 50 m at step jump_at), open the gripper at step open_step; the fold's result."""
+    stamps = [t0 + k * DT_NS for k in range(steps + 1)]
     start = spec.start_poses[0].position
-    pos = [start + [0.002 * k, 0.0, 0.0] for k in range(n + 1)]
+    pos = [start + [0.002 * k, 0.0, 0.0] for k in range(steps + 1)]
     if jump_at is not None:
         pos[jump_at] = [50.0, 0.0, 0.1]
     before = len(r.results)
     _targets(r, stamps, pos)
     r.streamed_until = stamps[-1]
-    _command(r, t0 + round(open_after / 0.04) * DT_NS, 0.08)
+    _command(r, t0 + open_step * DT_NS, 0.08)
     return _result(r, before)
 
 
@@ -214,13 +219,7 @@ def test_a_close_that_arrives_before_its_announcement_waits_for_it(rig):
     time.sleep(0.6)  # four times what the free clock needed to reach t0
     assert _now(r) < t0
     spec = _announce(r, t0, 1.0)
-    stamps = [t0 + k * DT_NS for k in range(26)]
-    start = spec.start_poses[0].position
-    before = len(r.results)
-    _targets(r, stamps, [start + [0.002 * k, 0.0, 0.0] for k in range(26)])
-    r.streamed_until = stamps[-1]
-    _command(r, stamps[-1], 0.08)
-    res = _result(r, before)
+    res = _stream(r, spec, t0, 25, 25)
     assert res.success and res.steps == 25 and res.fold_name == "left_sleeve", (res.success, res.reason)
 
 
@@ -237,13 +236,7 @@ def test_an_announcement_slow_in_transit_is_still_on_time(rig):
     spec = _announce(r, t0, 1.0)
     time.sleep(0.2)
     _command(r, t0, 0.0)
-    stamps = [t0 + k * DT_NS for k in range(26)]
-    start = spec.start_poses[0].position
-    before = len(r.results)
-    _targets(r, stamps, [start + [0.002 * k, 0.0, 0.0] for k in range(26)])
-    r.streamed_until = stamps[-1]
-    _command(r, stamps[-1], 0.08)
-    res = _result(r, before)
+    res = _stream(r, spec, t0, 25, 25)
     assert res.success and res.steps == 25, (res.success, res.reason)
 
 
