@@ -64,7 +64,7 @@ class SimConfig:
         _real(self, "newton_tol", 0.0, None, low_open=True, unit="m/s")
         _integer(self, "newton_window", 1)
         if self.force_tol is not None:
-            _real(self, "force_tol", 0.0, None, low_open=True, unit="m/s", extra=" or None (newton_tol)")
+            _real(self, "force_tol", 0.0, None, low_open=True, unit="m/s", extra=" or None (off)")
         _integer(self, "max_newton_iterations", 1)
         _integer(self, "max_line_search_halvings", 1, 1074)  # 0.5**n must stay > 0
         _real(self, "model_ratio", 0.0, 1.0, high_open=True)

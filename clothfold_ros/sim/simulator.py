@@ -490,14 +490,14 @@ class ClothSimulator:
             if full_direction and it > 1 and len(residuals) >= cfg.newton_window and \
                     max(residuals[-cfg.newton_window :]) <= cfg.newton_tol and \
                     (cfg.force_tol is None or self._force_residual(grad, free) <= cfg.force_tol):
-                return x, it, halvings, residual, col  # it > 1: the first iterate is never taken as it is (module doc)
+                return x, it, halvings, residual, col  # it > 1: the first iterate is never taken as it is (docstring)
             try:
                 x_new, col_t, n_halved, energy = self._line_search(x, p, grad, x_hat, x_prev, col, pull, phases, when,
                                                                    f"Newton iteration {it}, residual {residual:.3g} m/s",
                                                                    energy)
             except SimulationFailure:
-                if full_direction and residual <= cfg.newton_tol:  # a step below the tolerance that rounding
-                    return x, it, halvings, residual, col  # keeps from lowering the potential: x is converged
+                if full_direction and residual <= cfg.newton_tol:  # a step below the tolerance that cannot be
+                    return x, it, halvings, residual, col  # taken (rounding, CCD): x is as converged as it gets
                 raise
             halvings += n_halved
             x = x_new
