@@ -29,6 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from clothfold_ros.loss import distance_past_target, mean_vertex_distance  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = Path(__file__).resolve().parent / "reference"
 FOLDS = {  # name: (h, tilt deg, motion time s, end angle deg, reference file, bound m)
@@ -71,27 +74,31 @@ def run_fold(pythonpath: Path, area: float, h: float, tilt: float, duration: flo
     return res
 
 
-def past_target(x: np.ndarray, target: np.ndarray, flat: np.ndarray) -> float:
-    """Mean distance (m) the folded vertices lie beyond their targets, along their fold motion (xy)."""
-    folded = np.linalg.norm(target[:, :2] - flat[:, :2], axis=1) > 1e-9
-    way = target[folded, :2] - flat[folded, :2]
-    way /= np.linalg.norm(way, axis=1, keepdims=True)
-    return float(np.mean(np.sum((x[folded, :2] - target[folded, :2]) * way, axis=1)))
-
-
-def flat_mesh(area: float) -> np.ndarray:
+def shirt_and_flat(area: float):
+    """The default shirt at max area `area` (m^2) and its flat start (N, 3) m."""
     from clothfold_ros.garment import make_shirt
     from clothfold_ros.materials import material
     from clothfold_ros.sim.runner import flat_start
 
-    return flat_start(make_shirt(1, max_area=area), material("cotton"))
+    g = make_shirt(1, max_area=area)
+    return g, flat_start(g, material("cotton"))
+
+
+def left_sleeve_target(garment, flat: np.ndarray, end: float) -> np.ndarray:
+    """The left-sleeve fold's target (the loss's) for the flat shirt, end angle `end` deg."""
+    from clothfold_ros.folding import fold_spec
+    from clothfold_ros.loss import fold_target
+    from clothfold_ros.materials import material
+
+    return fold_target(flat, fold_spec("left_sleeve", garment.keypoints(flat), end), material("cotton").thickness)
 
 
 def report(tag: str, r: dict, flat: np.ndarray, ref: np.ndarray | None, bound: float | None) -> None:
     if not r["ok"]:
         print(f"  {tag:<9} FAILED: {r['reason']}", flush=True)
         return
-    line = (f"  {tag:<9} loss {r['loss'] * 1e3:6.2f} mm; past target {past_target(r['final'], r['target'], flat) * 1e3:6.2f} mm; "
+    past = distance_past_target(r["final"], flat, r["target"])
+    line = (f"  {tag:<9} loss {r['loss'] * 1e3:6.2f} mm; past target {past * 1e3:6.2f} mm; "
             f"wall {r['wall']:6.1f} s; Newton {r['its'] / max(r['steps'], 1):5.1f} its/step")
     if ref is not None:
         d = np.linalg.norm(r["final"] - ref, axis=1)
@@ -106,7 +113,7 @@ def main() -> None:
     ap.add_argument("--area", type=float, default=5e-5, help="max triangle area (m^2); the references are 5e-5")
     ap.add_argument("--points", type=int, nargs="*", default=[], help="further T1 fan points (no reference)")
     args = ap.parse_args()
-    flat = flat_mesh(args.area)
+    garment, flat = shirt_and_flat(args.area)
     with tempfile.TemporaryDirectory() as t:
         tmp = Path(t)
         base = None
@@ -117,9 +124,12 @@ def main() -> None:
         try:
             for name, (h, tilt, duration, end, ref_file, bound) in FOLDS.items():
                 ref = np.load(REFERENCE / ref_file) if args.area == 5e-5 else None
-                print(f"== {name}: (h {h}, tilt {tilt}), {duration:g} s, end angle {end:g}, max area {args.area:g}"
-                      + (f"; reference loss {np.mean(np.linalg.norm(ref - run_target(flat, end), axis=1)) * 1e3:.2f} mm, "
-                         f"{past_target(ref, run_target(flat, end), flat) * 1e3:.2f} mm past target" if ref is not None else ""),
+                about = ""
+                if ref is not None:
+                    target = left_sleeve_target(garment, flat, end)
+                    about = (f"; reference loss {mean_vertex_distance(ref, target) * 1e3:.2f} mm, "
+                             f"{distance_past_target(ref, flat, target) * 1e3:.2f} mm past target")
+                print(f"== {name}: (h {h}, tilt {tilt}), {duration:g} s, end angle {end:g}, max area {args.area:g}{about}",
                       flush=True)
                 report("now", run_fold(ROOT, args.area, h, tilt, duration, end, tmp), flat, ref, bound)
                 if base is not None:
@@ -137,17 +147,6 @@ def main() -> None:
         finally:
             if base is not None:
                 subprocess.run(["git", "worktree", "remove", "--force", str(base)], cwd=ROOT, capture_output=True)
-
-
-def run_target(flat: np.ndarray, end: float) -> np.ndarray:
-    """The left-sleeve fold's target for the flat shirt (the loss's target)."""
-    from clothfold_ros.folding import fold_spec
-    from clothfold_ros.garment import make_shirt
-    from clothfold_ros.loss import fold_target
-    from clothfold_ros.materials import material
-
-    g = make_shirt(1, max_area=5e-5)
-    return fold_target(flat, fold_spec("left_sleeve", g.keypoints(flat), end), material("cotton").thickness)
 
 
 if __name__ == "__main__":

@@ -60,3 +60,19 @@ def mean_vertex_distance(a: np.ndarray, b: np.ndarray) -> float:
     if len(va) == 0:
         raise ValueError("vertex arrays are empty")
     return float(np.mean(np.linalg.norm(va - vb, axis=1)))
+
+
+def distance_past_target(vertices: np.ndarray, start: np.ndarray, target: np.ndarray) -> float:
+    """Mean distance (m) that the folded vertices (those whose target differs from their start)
+    lie beyond their targets along their horizontal fold motion; negative: short of them.
+    A fast fold's sleeve lands past its target (docs/simulator.md, "Fast folds")."""
+    x, s, t = _vertices(vertices), _vertices(start, "start vertices"), _vertices(target, "target vertices")
+    if not x.shape == s.shape == t.shape:
+        raise ValueError(f"vertex arrays differ in shape: {x.shape}, {s.shape}, {t.shape}")
+    way = t[:, :2] - s[:, :2]
+    length = np.linalg.norm(way, axis=1)
+    moved = length > 1e-9
+    if not moved.any():
+        raise ValueError("no vertex is folded: the target equals the start")
+    way = way[moved] / length[moved, None]
+    return float(np.mean(np.sum((x[moved, :2] - t[moved, :2]) * way, axis=1)))

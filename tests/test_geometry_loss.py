@@ -109,3 +109,26 @@ def test_bad_inputs(shirt):
         folded_mask(a[:, :2], specs["middle"])
     with pytest.raises(ValueError, match="thickness"):
         fold_target(a, specs["middle"], -T)
+
+
+def test_distance_past_target_measures_along_each_vertex_fold_motion():
+    from clothfold_ros.loss import distance_past_target
+
+    start = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 5.0, 0.0]])
+    target = np.array([[2.0, 0.0, 0.0], [1.0, 2.0, 0.0], [0.0, 5.0, 0.0]])  # the third does not fold
+    beyond = target + np.array([[0.5, 0.3, 0.1], [0.2, -0.1, 0.0], [9.0, 9.0, 9.0]])
+    # 0.5 past along +x, 0.1 short along +y; the unfolded vertex and the heights do not count
+    assert distance_past_target(beyond, start, target) == pytest.approx(0.2)
+    assert distance_past_target(target, start, target) == 0.0
+
+
+def test_distance_past_target_refuses_nothing_folded_and_mismatched_shapes():
+    from clothfold_ros.loss import distance_past_target
+
+    flat = np.zeros((3, 3))
+    with pytest.raises(ValueError, match="no vertex is folded"):
+        distance_past_target(flat, flat, flat)
+    with pytest.raises(ValueError, match="differ in shape"):
+        distance_past_target(flat, flat, np.zeros((2, 3)))
+    with pytest.raises(ValueError):
+        distance_past_target(np.full((3, 3), np.nan), flat, flat + 1.0)

@@ -12,24 +12,16 @@ brings the final mesh from 6.5 mm to 0.36 mm mean of the study's (bench/bench_re
 """
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from clothfold_ros.folding import fold_spec
 from clothfold_ros.garment import make_shirt
+from clothfold_ros.loss import distance_past_target
 from clothfold_ros.materials import material
 from clothfold_ros.sim.runner import flat_start, run_fold
 
 COARSE = 5e-4  # m^2, the coarsest mesh that folds (tests/test_sim_fold.py)
 POINT_32 = (0.515385, 30.0)  # the T1 table's fan point 32
-
-
-def _past_target(out, flat: np.ndarray) -> float:
-    """Mean distance (m) the folded vertices end beyond their targets, along their fold motion (xy)."""
-    folded = np.linalg.norm(out.target[:, :2] - flat[:, :2], axis=1) > 1e-9
-    way = out.target[folded, :2] - flat[folded, :2]
-    way /= np.linalg.norm(way, axis=1, keepdims=True)
-    return float(np.mean(np.sum((out.vertices[folded, :2] - out.target[folded, :2]) * way, axis=1)))
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +34,7 @@ def overshoot():
     for duration in (1.0, 4.0):
         out = run_fold(g, spec, cotton, 0.5, *POINT_32, duration)
         assert out.success, out.reason
-        result[duration] = _past_target(out, flat)
+        result[duration] = distance_past_target(out.vertices, flat, out.target)
     return result
 
 
