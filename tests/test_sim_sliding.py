@@ -18,17 +18,9 @@ from clothfold_ros.sim.config import SimConfig
 from clothfold_ros.sim.friction import table_normal_forces
 from clothfold_ros.sim.simulator import ClothSimulator
 
+from sim_helpers import rectangle
+
 GRAVITY = 9.81
-
-
-def _square(n: int = 13, side: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
-    """A flat square (side m) of n x n vertices, two triangles per cell, at z = 2 t of cotton."""
-    xs = np.linspace(0.0, side, n)
-    gx, gy = np.meshgrid(xs, xs)
-    v = np.c_[gx.ravel(), gy.ravel(), np.full(n * n, 2 * material("cotton").thickness)]
-    cells = [(i * n + j, i * n + j + 1, (i + 1) * n + j, (i + 1) * n + j + 1) for i in range(n - 1) for j in range(n - 1)]
-    tri = np.array([t for a, b, c, d in cells for t in ((a, b, d), (a, d, c))])
-    return v, tri
 
 
 def _discrete_slide(v0: float, mu: float, dt: float, steps: int) -> float:
@@ -41,7 +33,7 @@ def _discrete_slide(v0: float, mu: float, dt: float, steps: int) -> float:
 
 
 def _rested(mu: float) -> ClothSimulator:
-    v, tri = _square()
+    v, tri = rectangle(0.2, 0.2, 3e-4, 2 * material("cotton").thickness)  # 20 cm square, flat at z = 2 t
     sim = ClothSimulator(v, tri, material("cotton"), mu, SimConfig())
     for _ in range(8):  # 0.32 s: fall into the barrier's range and come to rest
         sim.step()
